@@ -1,0 +1,115 @@
+"""The drafted pattern: what the pattern model hands to the remesher.
+
+This is the contract between ``couture.pattern`` (slopers, strokes, validation,
+I/O, placement) and ``couture.remesh`` (triangle meshes, seams, Ψ). The pattern
+side drafts a design into flat panels whose outlines are dense polylines in
+metres; the remesher meshes them without moving those polyline vertices, so a
+pattern edit's Jacobian on the polyline vertices is all the remesher needs to
+build Ψ (SC §6): linear along the boundary, positive mean value coordinates
+inside.
+
+Invariant the remesher relies on: for one design, the number of polyline
+vertices of every outline and hole does not change when sloper parameters or
+stroke values change (only their positions do), so finite differences and
+Jacobians over parameters are well defined.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Segment:
+    """A named boundary piece of a panel (seam segment / interface).
+
+    Covers outline vertices ``start, start+1, ..., stop`` (indices wrap modulo
+    the outline length; ``stop`` may be smaller than ``start``).
+    """
+
+    name: str
+    start: int
+    stop: int
+
+
+@dataclass
+class Placement:
+    """Initial 3D placement of a panel around the body (Meng 2010 / Volino 2005).
+
+    kind 'cylinder': material x wraps around the vertical axis through
+    ``origin`` at ``radius`` starting at angle ``angle0`` [rad] (angle grows
+    with x / radius), material y maps to world y (up) shifted by origin[1].
+    kind 'plane': world = origin + X[:, 0] * u + X[:, 1] * v.
+    """
+
+    kind: str
+    origin: np.ndarray
+    """[m], shape (3,)"""
+    radius: float = 0.0
+    """[m], cylinder only"""
+    angle0: float = 0.0
+    """[rad], cylinder only"""
+    u: np.ndarray | None = None
+    """unit 3-vector for material x, plane only"""
+    v: np.ndarray | None = None
+    """unit 3-vector for material y, plane only"""
+    flip: bool = False
+    """mirror material x (a back panel seen from behind), cylinder only"""
+
+
+@dataclass
+class Panel:
+    """A closed edge loop with holes: one piece of fabric, flat, in metres."""
+
+    name: str
+    outline: np.ndarray
+    """boundary polyline [m], shape (k, 2), counter-clockwise, not closed (last != first)"""
+    holes: list[np.ndarray] = field(default_factory=list)
+    """hole polylines [m], each shape (h, 2), clockwise"""
+    segments: list[Segment] = field(default_factory=list)
+    """named boundary pieces, used by seams"""
+    placement: Placement | None = None
+    """initial 3D placement; None: flat at z = 0"""
+
+
+@dataclass
+class SeamSpec:
+    """A stitch: two segments to sew. Lengths may differ (gathers, pleats)."""
+
+    a_panel: str
+    a_segment: str
+    b_panel: str
+    b_segment: str
+    reverse: bool = True
+    """traverse b backwards while a goes forwards (the usual case for two
+    counter-clockwise panels sewn edge to edge)"""
+
+
+@dataclass
+class DraftedPattern:
+    """A whole garment, drafted: panels and seams."""
+
+    panels: list[Panel]
+    seams: list[SeamSpec] = field(default_factory=list)
+
+    def panel(self, name: str) -> Panel:
+        for p in self.panels:
+            if p.name == name:
+                return p
+        raise KeyError(f"no panel named {name!r}; panels are {[p.name for p in self.panels]}")
+
+
+@dataclass
+class PanelJacobian:
+    """How a panel's polylines move per unit pointer motion for one edit.
+
+    ``outline[i] @ dd`` is the motion [m] of outline vertex i for a pointer
+    motion dd [m] (2,), i.e. SC's 2x2 tensor Ψ_i on the boundary.
+    """
+
+    outline: np.ndarray
+    """shape (k, 2, 2)"""
+    holes: list[np.ndarray] = field(default_factory=list)
+    """each shape (h, 2, 2)"""

@@ -1,0 +1,90 @@
+"""The design: what a designer edits, carried by the ``pattern`` message and
+stored as our JSON pattern file (``couture/design/v1``).
+
+Shared by ``schemas.messages`` (the bus) and ``couture.pattern`` (drafting,
+validation, file I/O). Strokes ride the sloper: their parameters are relative
+to the drafted sloper (segment names and curve parameters, not absolute
+coordinates), so they survive sloper parameter changes.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import msgspec
+
+DESIGN_SCHEMA = "couture/design/v1"
+
+
+class Fabric(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """Material of every panel (SC Table 1 ranges in the comments)."""
+
+    name: str = "cotton"
+    stretch_stiffness: float = 20.0
+    """in-plane stiffness [N/m] (Young's modulus x thickness), 10..2000"""
+    poisson_ratio: float = 0.3
+    """dimensionless, 0 <= nu < 0.5"""
+    bend_stiffness: float = 1e-6
+    """[N m], 1e-8..3e-4"""
+    area_density: float = 0.15
+    """[kg/m^2], 0.08..0.2"""
+    friction_static: float = 0.5
+    """Coulomb static coefficient against the body"""
+    friction_kinetic: float = 0.3
+    """Coulomb kinetic coefficient against the body"""
+
+
+class Sloper(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """A drafted base pattern: its kind and its options (each option's
+    default/min/max/unit is data in couture.pattern)."""
+
+    kind: str = "skirt"
+    """'skirt', 'dress', 'shirt', 'trousers'"""
+    params: dict[str, float] = {}
+    """option name -> value in the option's unit (SI: metres, radians, counts)"""
+
+
+class Stroke(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """An edit that rides the sloper: 'curve', 'dart', 'seam', 'symmetry', 'hole'."""
+
+    id: str
+    """stable identifier, used by edit messages to name the element"""
+    kind: str
+    panel: str = ""
+    """panel the stroke belongs to ('' for strokes between panels, e.g. seams)"""
+    params: dict[str, Any] = {}
+    """kind-specific values, validated by couture.pattern (names the element on error)"""
+
+
+class Body(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """The mannequin."""
+
+    name: str = "default"
+    """'default' is the embedded A-pose mannequin"""
+
+
+class SceneFlags(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """Which terms the scene needs (absent terms are never built)."""
+
+    body: bool = True
+    gravity: bool = True
+    seams: bool = True
+    friction: bool = True
+
+
+class Resolution(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """Target mesh sizes for cascadic refinement."""
+
+    coarse_vertices: int = 1600
+    fine_vertices: int = 10000
+
+
+class Design(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """A whole garment design."""
+
+    sloper: Sloper = msgspec.field(default_factory=Sloper)
+    strokes: list[Stroke] = []
+    fabric: Fabric = msgspec.field(default_factory=Fabric)
+    body: Body = msgspec.field(default_factory=Body)
+    scene: SceneFlags = msgspec.field(default_factory=SceneFlags)
+    resolution: Resolution = msgspec.field(default_factory=Resolution)
