@@ -1,0 +1,36 @@
+"""Message definitions and their versions (DESIGN.md §2).
+
+    from schemas import DrapeMsg, encode, decode, SchemaError
+    msg = DrapeMsg(level="fine", x=x, generation=3)   # numpy arrays accepted
+    data = encode(msg); back = decode(data, DrapeMsg); back.x.numpy()
+"""
+
+from schemas.arrays import DTYPES, Array, as_array, to_numpy
+from schemas.design import DESIGN_SCHEMA, Design
+from schemas.messages import (
+    MESSAGE_TYPES,
+    REGISTRY,
+    TOPIC_TYPES,
+    DrapeMsg,
+    EditMsg,
+    MeshMsg,
+    Message,
+    PatternMsg,
+    SchemaError,
+    SolveRequestMsg,
+    SolveResultMsg,
+    StatusMsg,
+    decode,
+    encode,
+    json_schema,
+    peek_schema,
+    type_for_topic,
+    validate,
+)
+
+__all__ = [
+    "DTYPES", "Array", "as_array", "to_numpy", "DESIGN_SCHEMA", "Design",
+    "MESSAGE_TYPES", "REGISTRY", "TOPIC_TYPES", "Message", "PatternMsg", "EditMsg", "MeshMsg",
+    "DrapeMsg", "StatusMsg", "SolveRequestMsg", "SolveResultMsg", "SchemaError",
+    "encode", "decode", "validate", "peek_schema", "json_schema", "type_for_topic",
+]

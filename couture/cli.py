@@ -1,0 +1,194 @@
+"""``couture`` command line: up, record, replay, compare, recover, drape, bench."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import logging
+import shutil
+import sys
+from pathlib import Path
+
+BENCHES = ["bus", "solver", "remesh", "sensitivity", "ui"]
+
+
+def _parser() -> argparse.ArgumentParser:
+    from couture.bus import add_bus_args
+    from couture.recording.__main__ import build_parser as record_parser
+
+    p = argparse.ArgumentParser(prog="couture", description="interactive garment design (Sensitive Couture) on Zenoh")
+    p.add_argument("-v", "--verbose", action="store_true")
+    sub = p.add_subparsers(dest="cmd", required=True)
+
+    up = sub.add_parser("up", help="start every node (own processes, restarted on crash)")
+    up.add_argument("--record", metavar="FILE", help="also record the session to this MCAP file")
+    up.add_argument("--no-ui", action="store_true", help="do not start the web UI node")
+    up.add_argument("--solver", nargs="+", default=["kinetic"], choices=["kinetic", "newton", "verlet"],
+                    help="solver nodes to run (several for side-by-side comparison)")
+    up.add_argument("--ui-host", default="127.0.0.1")
+    up.add_argument("--ui-port", type=int, default=8080)
+    add_bus_args(up)
+
+    record_parser(sub.add_parser("record", help="record couture/** messages to MCAP"))
+
+    rp = sub.add_parser("replay", help="publish recorded inputs (pattern, edit) onto the bus")
+    rp.add_argument("path")
+    rp.add_argument("--topics", nargs="+", default=["pattern", "edit"], help="relative topics to replay (default: pattern edit)")
+    rp.add_argument("--rate", type=float, default=1.0, help="1: original timing, R: R times faster, 0: as fast as possible")
+    rp.add_argument("--loop", action="store_true")
+    rp.add_argument("--wait-nodes", nargs="*", default=[], help="node names that must be live before sending")
+    rp.add_argument("--wait-timeout", type=float, default=10.0, help="[s]")
+    add_bus_args(rp)
+
+    cp = sub.add_parser("compare", help="compare outputs of two recordings within tolerances")
+    cp.add_argument("golden")
+    cp.add_argument("actual")
+    cp.add_argument("--json", metavar="OUT", help="write the report as JSON")
+    cp.add_argument("--rtol", type=float, default=1e-5)
+    cp.add_argument("--atol", type=float, default=1e-8, help="absolute tolerance [m for positions]")
+    cp.add_argument("--topics", nargs="+", default=None, help="output topics (default drape/* mesh/* solve/result/*)")
+
+    rc = sub.add_parser("recover", help="rewrite a recording cut short (SIGKILL) into a finalized MCAP")
+    rc.add_argument("src")
+    rc.add_argument("dst")
+
+    dp = sub.add_parser("drape", help="drape a pattern file: start (or join) the nodes, write OBJ + pattern")
+    dp.add_argument("pattern", help="pattern JSON (couture/design/v1)")
+    dp.add_argument("--out", required=True, help="output directory")
+    dp.add_argument("--timeout", type=float, default=120.0, help="[s] to wait for drape/fine")
+    dp.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet"])
+    add_bus_args(dp)
+
+    bp = sub.add_parser("bench", help="benchmarks")
+    bp.add_argument("which", choices=BENCHES)
+    bp.add_argument("args", nargs=argparse.REMAINDER, help="passed to the benchmark")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
+                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    try:
+        return int(_dispatch(args) or 0)
+    except (TimeoutError, ValueError, FileNotFoundError, RuntimeError) as e:
+        print(f"couture {args.cmd}: error: {e}", file=sys.stderr)
+        return 1
+
+
+def _dispatch(args: argparse.Namespace) -> int:
+    from couture.bus import bus_config_from_args
+
+    if args.cmd == "up":
+        from couture import supervisor
+
+        nodes = supervisor.default_nodes(solvers=args.solver, ui=not args.no_ui, ui_host=args.ui_host,
+                                         ui_port=args.ui_port, record=args.record)
+        url = "" if args.no_ui else f"http://{args.ui_host}:{args.ui_port}"
+        return supervisor.main(supervisor.SupervisorConfig(bus=bus_config_from_args(args), nodes=nodes, ui_url=url))
+
+    if args.cmd == "record":
+        from couture.recording.__main__ import config_from_args
+        from couture.recording.recorder import main as record
+
+        record(config_from_args(args))
+        return 0
+
+    if args.cmd == "replay":
+        from couture.recording.replay import ReplayConfig
+        from couture.recording.replay import main as replay
+
+        replay(ReplayConfig(path=args.path, bus=bus_config_from_args(args), topics=args.topics, rate=args.rate,
+                            loop=args.loop, wait_nodes=args.wait_nodes, wait_timeout_s=args.wait_timeout))
+        return 0
+
+    if args.cmd == "compare":
+        from couture.recording.compare import compare, write_json
+
+        rep = compare(args.golden, args.actual, rtol=args.rtol, atol=args.atol, topics=args.topics)
+        print(rep.text())
+        if args.json:
+            write_json(rep, args.json)
+        return 0 if rep.ok else 1
+
+    if args.cmd == "recover":
+        from couture.recording.mcapio import recover
+
+        n = recover(args.src, args.dst)
+        print(f"recovered {n} messages into {args.dst}")
+        return 0
+
+    if args.cmd == "drape":
+        return drape(args.pattern, args.out, bus=bus_config_from_args(args), timeout=args.timeout, solver=args.solver)
+
+    if args.cmd == "bench":
+        try:
+            mod = importlib.import_module(f"couture.bench.{args.which}")
+        except ModuleNotFoundError as e:
+            if e.name and e.name.startswith("couture.bench"):
+                raise RuntimeError(f"benchmark {args.which!r} is not available yet (no couture.bench.{args.which})") from None
+            raise
+        if not hasattr(mod, "main"):
+            raise RuntimeError(f"benchmark {args.which!r} is not available yet (couture.bench.{args.which} has no main)")
+        return int(mod.main(args.args) or 0)
+    raise AssertionError(args.cmd)
+
+
+def drape(pattern: str, out: str, *, bus, timeout: float = 120.0, solver: str = "kinetic") -> int:
+    """Drape a pattern file: join the bus given by ``bus.connect`` or start the
+    nodes (no UI), publish the pattern, wait for drape/fine, write
+    ``drape.obj`` and ``pattern.json`` into ``out``."""
+    from contextlib import ExitStack
+
+    from couture import supervisor
+    from couture.client import Client, load_design
+
+    design = load_design(pattern)  # fail on a bad file before starting anything
+    out_dir = Path(out)
+    with ExitStack() as stack:
+        if bus.connect:
+            cfg = bus
+        else:
+            sup = stack.enter_context(supervisor.Supervisor(supervisor.SupervisorConfig(
+                bus=bus, nodes=supervisor.default_nodes(solvers=[solver], ui=False))))
+            cfg = sup.child_bus
+        client = stack.enter_context(Client(bus=cfg))
+        if not bus.connect:
+            client.wait_nodes(["remesher", f"solver-{solver}"], timeout=min(30.0, timeout))
+        gen = client.publish_pattern(design, name=Path(pattern).stem)
+        print(f"[drape] published {pattern} as generation {gen}; waiting for drape/fine...", file=sys.stderr)
+        d = client.wait_drape("fine", generation=gen, timeout=timeout)
+        mesh = client.latest_mesh("fine")
+        if mesh is None or mesh.generation != d.generation or mesh.X.shape[0] != d.x.shape[0]:
+            raise RuntimeError(f"drape/fine for generation {d.generation} arrived but no matching mesh/fine "
+                               f"(have {None if mesh is None else (mesh.generation, mesh.X.shape[0])})")
+        out_dir.mkdir(parents=True, exist_ok=True)
+        write_obj(out_dir / "drape.obj", d.x.numpy(), mesh.tris.numpy(), mesh.X.numpy())
+        shutil.copyfile(pattern, out_dir / "pattern.json")
+        (out_dir / "drape.json").write_text(json.dumps({
+            "generation": d.generation, "solver": d.solver, "method": d.method, "residual": d.residual,
+            "iterations": d.iterations, "converged": d.converged, "diagnosis": d.diagnosis, "wall_time_s": d.wall_time_s,
+        }, indent=2))
+        print(f"[drape] wrote {out_dir / 'drape.obj'} (residual {d.residual:.2e}, {d.solver})", file=sys.stderr)
+    return 0
+
+
+def write_obj(path: Path, x, tris, uv=None) -> None:
+    """Wavefront OBJ: positions [m], optional texture coordinates (the 2D pattern [m]), faces."""
+    with open(path, "w") as f:
+        f.write("# couture drape, units: metres\n")
+        for p in x:
+            f.write(f"v {p[0]:.7g} {p[1]:.7g} {p[2]:.7g}\n")
+        if uv is not None:
+            for q in uv:
+                f.write(f"vt {q[0]:.7g} {q[1]:.7g}\n")
+        for t in tris + 1:
+            if uv is not None:
+                f.write(f"f {t[0]}/{t[0]} {t[1]}/{t[1]} {t[2]}/{t[2]}\n")
+            else:
+                f.write(f"f {t[0]} {t[1]} {t[2]}\n")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,185 @@
+"""Scripting client: publish designs and edits, wait for drapes, ask solvers.
+
+    with Client(session="s1", connect=["tcp/127.0.0.1:7447"]) as c:
+        gen = c.publish_pattern("skirt.json")
+        drape = c.wait_drape("fine", generation=gen, timeout=60)
+        x = drape.x.numpy()
+
+Timeouts raise :class:`TimeoutError` naming the topic that never answered and
+the nodes that were (not) live, never a made-up result.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+import uuid
+from pathlib import Path
+
+import msgspec
+import numpy as np
+
+from couture.bus import DEFAULT_ENDPOINT, BusConfig, open_session
+from couture.mesh import GarmentMesh
+from schemas.convert import mesh_to_msg
+from schemas.design import Design
+from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, SolveRequestMsg, SolveResultMsg
+
+EXPECTED_PRODUCERS = {
+    "mesh": "remesher",
+    "drape/coarse": "solver-*",
+    "drape/fine": "solver-*",
+    "drape/predicted": "sensitivity",
+}
+
+
+def load_design(path: str | os.PathLike) -> Design:
+    """Read a pattern JSON file (``couture/design/v1``); a top-level ``schema``
+    key, if present, must name that type."""
+    raw = msgspec.json.decode(Path(path).read_bytes())
+    if isinstance(raw, dict) and "schema" in raw:
+        if raw["schema"] != "couture/design/v1":
+            raise ValueError(f"{path}: schema {raw['schema']!r} is not couture/design/v1")
+        raw = raw.get("design", {k: v for k, v in raw.items() if k != "schema"})
+    try:
+        return msgspec.convert(raw, Design)
+    except msgspec.ValidationError as e:
+        raise ValueError(f"{path}: not a couture/design/v1 pattern: {e}") from None
+
+
+class Client:
+    """A bus participant for scripts and tests. Context manager.
+
+    ``connect`` defaults to ``tcp/127.0.0.1:7447``, where ``couture up`` listens."""
+
+    def __init__(self, session: str = "default", connect: list[str] | None = None, *,
+                 listen: list[str] | None = None, name: str | None = None, bus: BusConfig | None = None) -> None:
+        self.cfg = bus or BusConfig(session=session, connect=list(connect) if connect is not None else [DEFAULT_ENDPOINT],
+                                    listen=list(listen) if listen is not None else ["tcp/127.0.0.1:0"])
+        self.name = name or f"client-{os.getpid()}-{uuid.uuid4().hex[:6]}"
+        self._cond = threading.Condition()
+        self._drapes: dict[str, list[DrapeMsg]] = {"coarse": [], "fine": [], "predicted": []}
+        self._meshes: dict[str, MeshMsg] = {}
+        self._seen_generation = 0
+        self.bus = None
+
+    def __enter__(self) -> "Client":
+        self.bus = open_session(self.cfg, name=self.name)
+        try:
+            self.bus.declare_token(self.name)
+            self._pattern_pub = self.bus.publisher("pattern", PatternMsg)
+            self._edit_pub = self.bus.publisher("edit", EditMsg)
+            self.bus.subscribe("drape/*", self._on_drape, DrapeMsg)
+            self.bus.subscribe("mesh/*", self._on_mesh, MeshMsg)
+            self.bus.subscribe("pattern", self._on_pattern, PatternMsg)
+        except BaseException:
+            self.bus.close()
+            raise
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.bus.close()
+
+    # -- callbacks
+    def _on_drape(self, msg: DrapeMsg) -> None:
+        with self._cond:
+            lst = self._drapes[msg.level]
+            lst.append(msg)
+            del lst[:-64]
+            self._cond.notify_all()
+
+    def _on_mesh(self, msg: MeshMsg) -> None:
+        with self._cond:
+            self._meshes[msg.level] = msg
+            self._cond.notify_all()
+
+    def _on_pattern(self, msg: PatternMsg) -> None:
+        with self._cond:
+            self._seen_generation = max(self._seen_generation, msg.generation)
+
+    # -- API
+    def live_nodes(self, timeout: float = 1.0) -> list[str]:
+        return self.bus.live_nodes(timeout=timeout)
+
+    def wait_nodes(self, nodes: list[str], timeout: float = 10.0) -> None:
+        missing = self.bus.wait_nodes(nodes, timeout)
+        if missing:
+            raise TimeoutError(f"nodes {missing} not live on session {self.cfg.session} after {timeout:g} s "
+                               f"(live: {self.live_nodes() or 'none'})")
+
+    def publish_pattern(self, design: Design | str | os.PathLike, *, name: str = "", wait_subscribers_s: float = 5.0) -> int:
+        """Publish a design (or a pattern JSON path); returns its generation
+        (one more than the newest generation seen on the bus, at least 1)."""
+        if not isinstance(design, Design):
+            name = name or Path(design).stem
+            design = load_design(design)
+        with self._cond:
+            gen = self._seen_generation + 1
+            self._seen_generation = gen
+        self._pattern_pub.wait_matching(wait_subscribers_s)
+        self._pattern_pub.put(PatternMsg(design=design, generation=gen, source="client", name=name))
+        return gen
+
+    def send_edit(self, element: str, d: np.ndarray | list[float], *, phase: str = "drag", edit_id: str = "",
+                  dofs: list[str] | None = None, generation: int | None = None, **extra: object) -> EditMsg:
+        """Send one edit message (press / drag / release); returns it (with its edit_id)."""
+        msg = EditMsg(edit_id=edit_id or uuid.uuid4().hex[:12], phase=phase, element=element,  # type: ignore[arg-type]
+                      dofs=list(dofs or ["x", "y"]), d=np.asarray(d, np.float64),
+                      generation=self._seen_generation if generation is None else generation, **extra)  # type: ignore[arg-type]
+        self._edit_pub.put(msg)
+        return msg
+
+    def wait_drape(self, kind: str = "fine", generation: int | None = None, timeout: float = 60.0,
+                   *, converged: bool | None = None) -> DrapeMsg:
+        """The newest drape of ``kind`` ('fine', 'coarse', 'predicted') with
+        generation >= ``generation`` (any if None) that arrives or has arrived
+        since the client opened. Raises TimeoutError naming what was missing."""
+        if kind not in self._drapes:
+            raise ValueError(f"kind must be one of {list(self._drapes)}, got {kind!r}")
+        deadline = time.monotonic() + timeout
+
+        def find() -> DrapeMsg | None:
+            for m in reversed(self._drapes[kind]):
+                if (generation is None or m.generation >= generation) and (converged is None or m.converged == converged):
+                    return m
+            return None
+
+        with self._cond:
+            while (m := find()) is None:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                self._cond.wait(left)
+            if m is not None:
+                return m
+            meshes = {lvl: mm.generation for lvl, mm in self._meshes.items()}
+            drapes = {k: (v[-1].generation if v else None) for k, v in self._drapes.items()}
+        live = self.live_nodes(timeout=0.5)
+        producer = EXPECTED_PRODUCERS[f"drape/{kind}"]
+        hints = []
+        if not meshes:
+            hints.append("no mesh/* message arrived: the remesher never answered"
+                         + ("" if "remesher" in live else " (remesher is not live)"))
+        if producer.endswith("*") and not any(n.startswith(producer[:-1]) for n in live):
+            hints.append(f"no {producer} node is live")
+        elif not producer.endswith("*") and producer not in live:
+            hints.append(f"{producer} is not live")
+        raise TimeoutError(
+            f"no drape/{kind} for generation >= {generation} on session {self.cfg.session} within {timeout:g} s; "
+            f"meshes seen (level: generation): {meshes or 'none'}; last drapes: {drapes}; live nodes: {live or 'none'}"
+            + ("; " + "; ".join(hints) if hints else "")
+        )
+
+    def latest_mesh(self, level: str = "fine") -> MeshMsg | None:
+        with self._cond:
+            return self._meshes.get(level)
+
+    def solve(self, mesh: GarmentMesh | MeshMsg, warm_start: np.ndarray | None = None, solver: str | None = None,
+              *, tol: float = 1e-4, max_iters: int = 10_000, max_seconds: float = 60.0,
+              timeout: float | None = None, design: Design | None = None) -> SolveResultMsg:
+        """Solve ``mesh`` to equilibrium on a solver node (any if solver is None)."""
+        mm = mesh if isinstance(mesh, MeshMsg) else mesh_to_msg(mesh)
+        req = SolveRequestMsg(mesh=mm, x_warm=warm_start, tol=tol, max_iters=max_iters, max_seconds=max_seconds,
+                              solver=solver or "", design=design, generation=mm.generation, level=mm.level)
+        return self.bus.solve(req, timeout=timeout if timeout is not None else max_seconds + 10.0)

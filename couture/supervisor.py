@@ -1,0 +1,221 @@
+"""``couture up``: every node as its own OS process, restarted when it crashes.
+
+Topology: the supervisor opens a Zenoh *router* session listening on
+loopback (``tcp/127.0.0.1:7447`` if free, else a free port, unless
+``--listen`` names one; the endpoint is printed); every child is a peer that connects to it (``--connect``) and listens
+on a free loopback port itself, so peers also find each other by gossip.
+Nothing binds a non-loopback interface unless asked.
+
+Children are started with ``subprocess`` (fork + immediate exec: no Zenoh
+state crosses it) in their own process group, with ``COUTURE_PARENT_PID`` so
+they stop by themselves if the supervisor dies. A child that exits is
+restarted after an exponential backoff (``backoff_initial_s`` doubling up to
+``backoff_max_s``; reset once it has run ``stable_after_s``). Shutdown
+(SIGINT/SIGTERM): SIGTERM to every child's group (the recorder last, so it
+records the others leaving), wait ``term_timeout_s``, SIGKILL stragglers.
+
+Adding a node: append a :class:`NodeSpec` in :func:`default_nodes` (module
+``nodes.<name>`` with a ``__main__`` that takes the bus flags plus
+``--name``).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+
+from couture.bus import DEFAULT_ENDPOINT, DEFAULT_PORT, PARENT_PID_ENV, BusConfig, StopFlag, open_session
+from couture.bus.ports import free_port, port_is_free
+
+log = logging.getLogger("couture.supervisor")
+
+
+@dataclass
+class NodeSpec:
+    """One child process: ``python -m <module> <bus flags> --name <name> <args>``."""
+
+    name: str
+    module: str
+    args: list[str] = field(default_factory=list)
+    restart: bool = True
+    stop_last: bool = False
+    """stopped after the others (the recorder)"""
+
+
+@dataclass
+class SupervisorConfig:
+    bus: BusConfig = field(default_factory=BusConfig)
+    """the supervisor's own session: listen endpoints (loopback), session name"""
+    nodes: list[NodeSpec] = field(default_factory=list)
+    ui_url: str = ""
+    """printed once the ui node is up ('' when there is no ui)"""
+    backoff_initial_s: float = 0.5
+    backoff_max_s: float = 30.0
+    stable_after_s: float = 10.0
+    term_timeout_s: float = 5.0
+    python: str = sys.executable
+
+
+def default_nodes(
+    *,
+    solvers: list[str] | None = None,
+    ui: bool = True,
+    ui_host: str = "127.0.0.1",
+    ui_port: int = 8080,
+    record: str | None = None,
+) -> list[NodeSpec]:
+    """The standard set: remesher, one solver node per solver name, sensitivity, ui, recorder."""
+    nodes = [NodeSpec("remesher", "nodes.remesher")]
+    for s in solvers or ["kinetic"]:
+        nodes.append(NodeSpec(f"solver-{s}", "nodes.solver", ["--solver", s]))
+    nodes.append(NodeSpec("sensitivity", "nodes.sensitivity"))
+    if ui:
+        nodes.append(NodeSpec("ui", "nodes.ui", ["--host", ui_host, "--port", str(ui_port)]))
+    if record:
+        nodes.append(NodeSpec("recorder", "couture.recording", ["--out", record, "--quiet"], stop_last=True))
+    return nodes
+
+
+@dataclass
+class _Child:
+    spec: NodeSpec
+    proc: subprocess.Popen | None = None
+    started: float = 0.0
+    restarts: int = 0
+    backoff: float = 0.0
+    restart_at: float | None = None
+
+
+class Supervisor:
+    """Starts, watches and stops the node processes. Context manager."""
+
+    def __init__(self, config: SupervisorConfig) -> None:
+        self.config = config
+        cfg = config.bus
+        if cfg.listen and cfg.listen != ["tcp/127.0.0.1:0"]:
+            listen = list(cfg.listen)
+        else:  # the well-known port (what Client connects to by default), or any free one
+            listen = [DEFAULT_ENDPOINT if port_is_free(DEFAULT_PORT) else f"tcp/127.0.0.1:{free_port()}"]
+        self.bus_config = BusConfig(session=cfg.session, connect=list(cfg.connect), listen=listen, mode="router",
+                                    config_file=cfg.config_file, multicast=cfg.multicast)
+        self.child_bus = BusConfig(session=cfg.session, connect=listen, listen=["tcp/127.0.0.1:0"], mode="peer",
+                                   multicast=cfg.multicast)
+        self.children = {s.name: _Child(s) for s in config.nodes}
+        self.bus = None
+        self.events: list[tuple[str, bool]] = []
+
+    @property
+    def endpoint(self) -> str:
+        """Where nodes and clients connect (``--connect``)."""
+        return self.bus_config.listen[0]
+
+    def pids(self) -> dict[str, int]:
+        return {n: c.proc.pid for n, c in self.children.items() if c.proc is not None and c.proc.poll() is None}
+
+    def __enter__(self) -> "Supervisor":
+        self.bus = open_session(self.bus_config, name="supervisor")
+        self.bus.watch_nodes(self._on_liveliness, history=False)
+        for c in self.children.values():
+            self._spawn(c)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        try:
+            self.stop_children()
+        finally:
+            if self.bus is not None:
+                self.bus.close()
+
+    def _on_liveliness(self, node: str, alive: bool) -> None:
+        self.events.append((node, alive))
+        log.info("node %s %s", node, "is up" if alive else "went away")
+
+    def _spawn(self, c: _Child) -> None:
+        cmd = [self.config.python, "-m", c.spec.module, *self.child_bus.to_args(), "--name", c.spec.name, *c.spec.args]
+        env = dict(os.environ, **{PARENT_PID_ENV: str(os.getpid())})
+        c.proc = subprocess.Popen(cmd, env=env, start_new_session=True, stdin=subprocess.DEVNULL)
+        c.started = time.monotonic()
+        c.restart_at = None
+        log.info("started %s (pid %d): %s", c.spec.name, c.proc.pid, " ".join(cmd[1:3]))
+
+    def poll(self) -> None:
+        """Restart children that exited, after their backoff."""
+        now = time.monotonic()
+        for c in self.children.values():
+            if c.proc is None:
+                continue
+            code = c.proc.poll()
+            if code is None:
+                if c.backoff and now - c.started > self.config.stable_after_s:
+                    c.backoff = 0.0
+                continue
+            if not c.spec.restart:
+                continue
+            if c.restart_at is None:
+                c.backoff = min(self.config.backoff_max_s, c.backoff * 2 if c.backoff else self.config.backoff_initial_s)
+                c.restart_at = now + c.backoff
+                log.warning("node %s (pid %d) exited with code %s after %.1f s; restart %d in %.1f s",
+                            c.spec.name, c.proc.pid, code, now - c.started, c.restarts + 1, c.backoff)
+                print(f"[up] node {c.spec.name} (pid {c.proc.pid}) exited with code {code}; restarting in {c.backoff:.1f} s",
+                      file=sys.stderr, flush=True)
+            elif now >= c.restart_at:
+                c.restarts += 1
+                self._spawn(c)
+
+    def run(self, stop: StopFlag) -> None:
+        """Supervise until ``stop`` is set (SIGINT/SIGTERM)."""
+        while not stop.wait(0.1):
+            self.poll()
+
+    def stop_children(self) -> None:
+        first = [c for c in self.children.values() if not c.spec.stop_last]
+        last = [c for c in self.children.values() if c.spec.stop_last]
+        for group in (first, last):
+            self._terminate(group)
+
+    def _terminate(self, group: list[_Child]) -> None:
+        live = [c for c in group if c.proc is not None and c.proc.poll() is None]
+        for c in live:
+            _signal_group(c.proc, signal.SIGTERM)
+        deadline = time.monotonic() + self.config.term_timeout_s
+        for c in live:
+            try:
+                c.proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                log.warning("node %s (pid %d) ignored SIGTERM; killing", c.spec.name, c.proc.pid)
+                _signal_group(c.proc, signal.SIGKILL)
+                c.proc.wait()
+        for c in group:  # grandchildren left in a group whose leader already exited
+            if c.proc is not None:
+                _signal_group(c.proc, signal.SIGKILL)
+        for c in group:
+            c.spec.restart = False
+
+
+def _signal_group(proc: subprocess.Popen, sig: int) -> None:
+    try:
+        os.killpg(proc.pid, sig)
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+def main(config: SupervisorConfig) -> int:
+    stop = StopFlag().install()
+    try:
+        with Supervisor(config) as sup:
+            print(f"[up] session {config.bus.session}: connect nodes and clients with --connect {sup.endpoint} "
+                  f"--session {config.bus.session}", file=sys.stderr, flush=True)
+            for name, pid in sup.pids().items():
+                print(f"[up]   {name:<18} pid {pid}", file=sys.stderr, flush=True)
+            if config.ui_url:
+                print(f"[up] UI: {config.ui_url}", flush=True)
+            sup.run(stop)
+            print("[up] stopping nodes...", file=sys.stderr, flush=True)
+    finally:
+        stop.restore()
+    return 0

@@ -1,0 +1,14 @@
+import argparse
+import logging
+
+from couture.bus import add_bus_args, bus_config_from_args
+from nodes.solver.main import Config, main
+
+if __name__ == "__main__":
+    p = argparse.ArgumentParser(prog="python -m nodes.solver")
+    add_bus_args(p)
+    p.add_argument("--name", default="solver-kinetic", help="node name, unique in the session")
+    p.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet"])
+    a = p.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s solver %(levelname)s %(message)s")
+    main(Config(bus=bus_config_from_args(a), name=a.name, solver=a.solver))

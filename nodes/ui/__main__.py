@@ -1,0 +1,17 @@
+import argparse
+import logging
+from pathlib import Path
+
+from couture.bus import add_bus_args, bus_config_from_args
+from nodes.ui.main import Config, main
+
+if __name__ == "__main__":
+    p = argparse.ArgumentParser(prog="python -m nodes.ui")
+    add_bus_args(p)
+    p.add_argument("--name", default="ui", help="node name, unique in the session")
+    p.add_argument("--host", default="127.0.0.1", help="web UI host (default loopback)")
+    p.add_argument("--port", type=int, default=8080, help="3D view port; pattern view +1, page +2")
+    p.add_argument("--export-dir", type=Path, default=Path("out/exports"), help="where exports are written")
+    a = p.parse_args()
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s ui %(levelname)s %(message)s")
+    main(Config(bus=bus_config_from_args(a), name=a.name, host=a.host, port=a.port, export_dir=a.export_dir))

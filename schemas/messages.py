@@ -1,0 +1,521 @@
+"""Every message that crosses the bus (DESIGN.md §2), one msgspec Struct each.
+
+Each type has a versioned name ``couture/<name>/v<k>`` (``TYPE``) used in the
+payload (the ``schema`` field), as the MCAP schema name, and in errors. The
+wire format is msgpack; arrays are :class:`schemas.arrays.Array` (dtype +
+shape + raw little-endian bytes). Construct messages with numpy arrays or
+Arrays alike (``DrapeMsg(x=x, level="fine", ...)``); read arrays back with
+``msg.x.numpy()``.
+
+``encode(msg)`` validates and serializes; ``decode(data, expected_type)``
+parses and validates, raising only :class:`SchemaError`, whose message names
+the schema and the field path. Header fields (``seq``, ``stamp_ns``) are
+filled by the bus publisher when left at 0.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any, ClassVar, Literal
+
+import msgspec
+import numpy as np
+
+from schemas.arrays import DTYPES, FLOAT_DTYPES, Array
+from schemas.design import Design
+
+
+class SchemaError(ValueError):
+    """A message that is not a valid couture message; the text names the
+    schema (or 'unknown schema') and the field path."""
+
+
+@dataclass(frozen=True)
+class ArraySpec:
+    """What an array field must look like: allowed wire dtypes, a shape whose
+    entries are ints (fixed) or names (equal across fields of one message),
+    and whether every element must be finite."""
+
+    dtypes: tuple[str, ...]
+    shape: tuple[int | str, ...]
+    finite: bool = False
+    optional: bool = False
+
+
+F64 = ("float64",)
+I32 = ("int32",)
+
+
+class Message(msgspec.Struct, kw_only=True):
+    """Header carried by every message."""
+
+    schema: str = ""
+    """versioned type name, e.g. 'couture/drape/v1' (set automatically)"""
+    version: int = 1
+    """schema version, the k of '/v<k>' (set automatically)"""
+    seq: int = 0
+    """per-publisher sequence number, from 1 (filled by the publisher)"""
+    stamp_ns: int = 0
+    """send time, Unix epoch [ns] (filled by the publisher)"""
+    generation: int = 0
+    """pattern generation this message belongs to (stale work is dropped)"""
+
+    TYPE: ClassVar[str] = ""
+    ARRAYS: ClassVar[dict[str, ArraySpec]] = {}
+
+    def __post_init__(self) -> None:
+        if not self.schema:
+            self.schema = self.TYPE
+            self.version = _version_of(self.TYPE)
+        for name, spec in self.ARRAYS.items():
+            v = getattr(self, name)
+            if v is not None and not isinstance(v, Array):
+                a = np.asarray(v)
+                wire = _wire_name_or_none(a.dtype)
+                setattr(self, name, Array.from_numpy(a, wire if wire in spec.dtypes else spec.dtypes[0]))
+
+    def check(self) -> None:
+        """Type-specific checks beyond shapes (raise SchemaError with the field)."""
+
+
+def _version_of(type_name: str) -> int:
+    return int(type_name.rsplit("/v", 1)[1])
+
+
+def _wire_name_or_none(dt: np.dtype) -> str | None:
+    for name, d in DTYPES.items():
+        if d == dt:
+            return name
+    return None
+
+
+# ---------------------------------------------------------------------------
+# messages
+
+
+class PatternMsg(Message, kw_only=True):
+    """The full design. ui, scripts -> remesher (and every node that wants the
+    current design). Key ``pattern``."""
+
+    TYPE: ClassVar[str] = "couture/pattern/v1"
+    schema: str = "couture/pattern/v1"
+    design: Design = msgspec.field(default_factory=Design)
+    """sloper, strokes, fabric, body, scene flags, resolution"""
+    source: str = ""
+    """who published it: 'ui', 'client', 'replay', ..."""
+    name: str = ""
+    """human-readable design name (file stem)"""
+
+
+class EditMsg(Message, kw_only=True):
+    """A drag of a pattern element. ui -> remesher (Ψ on press), sensitivity
+    (predictions while dragging), solver (refine on release). Key ``edit``.
+
+    For a 2D drag, ``d`` is the pointer displacement in the pattern plane since
+    press. For a 3D drag on the drape, ``picked_*``, ``view_proj`` and
+    ``viewport_px`` say where the cloth was grabbed and how to project its
+    sensitivity to the screen (SC §5: Δg = ŝ·Δd / |ŝ|²); ``d`` is then the
+    screen displacement in pixels.
+    """
+
+    TYPE: ClassVar[str] = "couture/edit/v1"
+    ARRAYS: ClassVar[dict[str, ArraySpec]] = {
+        "d": ArraySpec(F64, (2,), finite=True),
+        "picked_bary": ArraySpec(F64, (3,), finite=True, optional=True),
+        "view_proj": ArraySpec(F64, (4, 4), finite=True, optional=True),
+    }
+    schema: str = "couture/edit/v1"
+    edit_id: str = ""
+    """identifier shared by the press, drags and release of one gesture"""
+    phase: Literal["press", "drag", "release"] = "drag"
+    element: str = ""
+    """id of the pattern element dragged (stroke id, 'panel:seg', sloper option name)"""
+    dofs: list[str] = []
+    """degrees of freedom of the element that the drag moves, e.g. ['x', 'y']"""
+    d: Array = msgspec.field(default_factory=lambda: Array.from_numpy(np.zeros(2)))
+    """pointer displacement since press: [m] in the pattern plane (2D drag), [px] on screen (3D drag), shape (2,), float64"""
+    param: str = ""
+    """sloper parameter driven by a 3D drag or a slider ('' for a 2D element drag)"""
+    picked_vertex: int = -1
+    """3D drag: fine-mesh vertex nearest the pick, -1 for a 2D drag"""
+    picked_tri: int = -1
+    """3D drag: triangle under the pointer, -1 for a 2D drag"""
+    picked_bary: Array | None = None
+    """3D drag: barycentric coordinates of the pick in picked_tri, shape (3,), float64"""
+    view_proj: Array | None = None
+    """3D drag: camera view-projection matrix (world [m] -> clip), shape (4, 4), float64, row-major"""
+    viewport_px: list[int] = []
+    """3D drag: viewport [width, height] in pixels"""
+
+
+class MeshMsg(Message, kw_only=True):
+    """A simulation mesh and, during an edit, Ψ. remesher -> solver,
+    sensitivity, ui. Keys ``mesh/coarse``, ``mesh/fine``.
+
+    Converts to/from :class:`couture.mesh.GarmentMesh` with
+    :func:`schemas.convert.mesh_to_msg` / :func:`schemas.convert.msg_to_mesh`.
+    """
+
+    TYPE: ClassVar[str] = "couture/mesh/v1"
+    ARRAYS: ClassVar[dict[str, ArraySpec]] = {
+        "X": ArraySpec(F64, ("n", 2), finite=True),
+        "x0": ArraySpec(F64, ("n", 3), finite=True),
+        "tris": ArraySpec(I32, ("m", 3)),
+        "tri_panel": ArraySpec(I32, ("m",)),
+        "seam_emitters": ArraySpec(I32, ("k",)),
+        "seam_edges": ArraySpec(I32, ("k", 2)),
+        "seam_weights": ArraySpec(F64, ("k",), finite=True),
+        "pinned": ArraySpec(I32, ("p",)),
+        "psi": ArraySpec(F64, ("n", 2, 2), finite=True, optional=True),
+        "fine_parent_tri": ArraySpec(I32, ("n",), optional=True),
+        "fine_bary": ArraySpec(F64, ("n", 3), finite=True, optional=True),
+    }
+    schema: str = "couture/mesh/v1"
+    level: Literal["coarse", "fine"] = "fine"
+    """cascadic refinement level"""
+    mesh_generation: int = 0
+    """bumps whenever the remesher changes this level's topology or rest shape (flips, remesh)"""
+    X: Array
+    """rest (pattern) positions [m], shape (n, 2), float64"""
+    x0: Array
+    """initial 3D placement [m], shape (n, 3), float64"""
+    tris: Array
+    """triangles, counter-clockwise in X, shape (m, 3), int32"""
+    tri_panel: Array
+    """panel index of each triangle, shape (m,), int32"""
+    panel_names: list[str] = []
+    """panel names indexed by tri_panel"""
+    seam_emitters: Array
+    """emitting vertex of each seam spring, shape (k,), int32"""
+    seam_edges: Array
+    """receiving edge (a, b) of each seam spring, shape (k, 2), int32"""
+    seam_weights: Array
+    """receiving point (1-w) x_a + w x_b, shape (k,), float64"""
+    pinned: Array
+    """vertices held at x0, shape (p,), int32"""
+    psi: Array | None = None
+    """Ψ for the active edit: dX_i = psi[i] @ dd, [m per unit of d], shape (n, 2, 2), float64"""
+    psi_edit_id: str = ""
+    """edit_id of the gesture psi belongs to ('' when psi is None)"""
+    fine_parent_tri: Array | None = None
+    """fine level only: coarse triangle containing each fine vertex (in X), shape (n,), int32"""
+    fine_bary: Array | None = None
+    """fine level only: barycentric coordinates in fine_parent_tri, shape (n, 3), float64"""
+
+    def check(self) -> None:
+        n = self.X.shape[0]
+        for name in ("tris", "seam_emitters", "seam_edges", "pinned"):
+            a = getattr(self, name).numpy()
+            if a.size and (a.min() < 0 or a.max() >= n):
+                raise SchemaError(f"{self.TYPE}: field `$.{name}`: vertex index outside [0, {n})")
+        tp = self.tri_panel.numpy()
+        if self.panel_names and tp.size and (tp.min() < 0 or tp.max() >= len(self.panel_names)):
+            raise SchemaError(f"{self.TYPE}: field `$.tri_panel`: panel index outside [0, {len(self.panel_names)})")
+
+
+class DrapeMsg(Message, kw_only=True):
+    """3D positions of a mesh. solver -> ui, sensitivity (keys ``drape/coarse``,
+    ``drape/fine``); sensitivity -> ui (key ``drape/predicted``)."""
+
+    TYPE: ClassVar[str] = "couture/drape/v1"
+    ARRAYS: ClassVar[dict[str, ArraySpec]] = {
+        "x": ArraySpec(FLOAT_DTYPES, ("n", 3), finite=True),
+        "d": ArraySpec(F64, (2,), finite=True, optional=True),
+    }
+    schema: str = "couture/drape/v1"
+    level: Literal["coarse", "fine", "predicted"] = "fine"
+    """mesh level, or 'predicted' for sensitivity previews (on the coarse mesh unless stated)"""
+    mesh_level: Literal["coarse", "fine"] = "coarse"
+    """for 'predicted': which mesh x lives on (ignored otherwise)"""
+    mesh_generation: int = 0
+    """mesh_generation of the mesh x belongs to"""
+    x: Array
+    """draped positions [m], shape (n, 3), float32 or float64"""
+    residual: float = float("nan")
+    """relative force residual ||R_free|| / ||F_gravity|| (couture.solvers.base); NaN if unknown"""
+    iterations: int = 0
+    """solver iterations so far (0 for predictions)"""
+    solver: str = ""
+    """name of the publishing solver node, '' for predictions"""
+    method: str = ""
+    """'kinetic', 'newton', 'verlet', 'linear', 'gmls', ..."""
+    wall_time_s: float = 0.0
+    """compute time spent on this result [s]"""
+    converged: bool = False
+    """residual below the requested tolerance"""
+    diagnosis: str = ""
+    """why the solver stopped if not converged ('' otherwise)"""
+    d: Array | None = None
+    """design point of a prediction (edit displacement), shape (2,), float64"""
+    edit_id: str = ""
+    """gesture a prediction belongs to"""
+    error_estimate: float | None = None
+    """cheap error estimate of a prediction (its relative force residual)"""
+    request_id: str = ""
+    """solve request this drape answers, '' for bus-driven solves"""
+
+
+class StatusMsg(Message, kw_only=True):
+    """Health of one node. every node -> ui, supervisor, recorder. Key
+    ``status/<node>``; presence itself is the liveliness token on the same key."""
+
+    TYPE: ClassVar[str] = "couture/status/v1"
+    schema: str = "couture/status/v1"
+    node: str
+    """node name, unique in the session"""
+    kind: str = ""
+    """'solver', 'remesher', 'sensitivity', 'ui', 'recorder', 'client', ..."""
+    pid: int = 0
+    """OS process id"""
+    state: str = "running"
+    """'starting', 'running', 'busy', 'stopping', 'error'"""
+    uptime_s: float = 0.0
+    """[s] since the node started"""
+    rates: dict[str, float] = {}
+    """events per second over the last status period [1/s], by name"""
+    counters: dict[str, int] = {}
+    """totals since start, by name (e.g. 'bad_messages', 'callback_errors')"""
+    last_error: str = ""
+    """last error text, '' if none"""
+
+
+class SolveRequestMsg(Message, kw_only=True):
+    """Solve to equilibrium. any client (pattern adjustment, sweeps, scripts) ->
+    a solver, through the ``solve/<solver>`` queryable; mirrored on
+    ``solve/request`` so recordings hold it."""
+
+    TYPE: ClassVar[str] = "couture/solve_request/v1"
+    ARRAYS: ClassVar[dict[str, ArraySpec]] = {
+        "x_warm": ArraySpec(F64, ("n", 3), finite=True, optional=True),
+    }
+    schema: str = "couture/solve_request/v1"
+    request_id: str = ""
+    """unique id, matches the result (filled by the bus if empty)"""
+    mesh: MeshMsg | None = None
+    """the mesh to solve on; None: the solver's latest mesh of mesh_generation/level"""
+    mesh_generation: int = 0
+    """when mesh is None: which mesh the solver must already hold"""
+    level: Literal["coarse", "fine"] = "fine"
+    """when mesh is None: which level"""
+    design: Design | None = None
+    """fabric/scene to use; None: the solver's current design"""
+    x_warm: Array | None = None
+    """warm start [m], shape (n, 3), float64; None: mesh x0"""
+    tol: float = 1e-4
+    """relative force residual to reach"""
+    max_iters: int = 10_000
+    """iteration cap"""
+    max_seconds: float = 60.0
+    """wall-time cap [s]"""
+    solver: str = ""
+    """solver wanted ('kinetic', 'newton', 'verlet'), '' for any"""
+
+
+class SolveResultMsg(Message, kw_only=True):
+    """Answer to a SolveRequestMsg. solver -> requester (query reply); mirrored
+    on ``solve/result/<solver>``."""
+
+    TYPE: ClassVar[str] = "couture/solve_result/v1"
+    ARRAYS: ClassVar[dict[str, ArraySpec]] = {
+        "x": ArraySpec(FLOAT_DTYPES, ("n", 3), finite=True, optional=True),
+    }
+    schema: str = "couture/solve_result/v1"
+    request_id: str = ""
+    """id of the request answered"""
+    solver: str = ""
+    """name of the solver that answered"""
+    method: str = ""
+    """'kinetic', 'newton', 'verlet'"""
+    level: Literal["coarse", "fine"] = "fine"
+    mesh_generation: int = 0
+    x: Array | None = None
+    """equilibrium (or last finite) positions [m], shape (n, 3); None when error is set"""
+    residual: float = float("nan")
+    """relative force residual at x"""
+    iterations: int = 0
+    wall_time_s: float = 0.0
+    """[s]"""
+    converged: bool = False
+    diagnosis: str = ""
+    """why it stopped if not converged"""
+    error: str = ""
+    """the request could not be run at all (bad mesh, unknown generation); x is None"""
+
+
+MESSAGE_TYPES: tuple[type[Message], ...] = (
+    PatternMsg, EditMsg, MeshMsg, DrapeMsg, StatusMsg, SolveRequestMsg, SolveResultMsg,
+)
+
+REGISTRY: dict[str, type[Message]] = {cls.TYPE: cls for cls in MESSAGE_TYPES}
+"""versioned type name -> class"""
+
+_BY_BASE: dict[str, dict[int, type[Message]]] = {}
+for _cls in MESSAGE_TYPES:
+    _base, _v = _cls.TYPE.rsplit("/v", 1)
+    _BY_BASE.setdefault(_base, {})[int(_v)] = _cls
+
+TOPIC_TYPES: dict[str, type[Message]] = {
+    "pattern": PatternMsg,
+    "edit": EditMsg,
+    "mesh/*": MeshMsg,
+    "drape/*": DrapeMsg,
+    "status/*": StatusMsg,
+    "solve/request": SolveRequestMsg,
+    "solve/result/*": SolveResultMsg,
+}
+"""which message type each key (relative to couture/<session>/) carries"""
+
+
+def type_for_topic(topic: str) -> type[Message] | None:
+    """Message class a relative key such as 'drape/fine' carries, or None."""
+    for pattern, cls in TOPIC_TYPES.items():
+        if pattern == topic or (pattern.endswith("/*") and topic.startswith(pattern[:-1]) and "/" not in topic[len(pattern) - 1:]):
+            return cls
+    return None
+
+
+# ---------------------------------------------------------------------------
+# encode / decode / validate
+
+
+class _Envelope(msgspec.Struct):
+    schema: str
+    version: int = 0
+
+
+_ENVELOPE = msgspec.msgpack.Decoder(_Envelope)
+_DECODERS = {name: msgspec.msgpack.Decoder(cls) for name, cls in REGISTRY.items()}
+_TYPE_RE = re.compile(r"(couture/[a-z_]+)/v(\d+)")
+
+
+def _enc_hook(obj: Any) -> Any:
+    if isinstance(obj, np.ndarray):
+        return Array.from_numpy(obj)
+    if isinstance(obj, np.generic):
+        return obj.item()
+    raise NotImplementedError(f"cannot encode {type(obj).__name__}")
+
+
+_ENCODER = msgspec.msgpack.Encoder(enc_hook=_enc_hook)
+
+
+def encode(msg: Message) -> bytes:
+    """Validate and serialize to msgpack (raises SchemaError on a bad message)."""
+    validate(msg)
+    return _ENCODER.encode(msg)
+
+
+def peek_schema(data: bytes) -> str | None:
+    """The ``schema`` field of a payload without decoding the rest, or None."""
+    try:
+        return _ENVELOPE.decode(data).schema
+    except Exception:
+        return None
+
+
+def decode(data: bytes | bytearray | memoryview, expected_type: type[Message] | None = None) -> Message:
+    """Parse and validate a payload; raises SchemaError (only) naming schema and field."""
+    try:
+        env = _ENVELOPE.decode(data)
+    except msgspec.ValidationError as e:
+        raise SchemaError(f"unknown schema: {_field_msg(e)}") from None
+    except Exception as e:
+        raise SchemaError(f"unknown schema: not a msgpack map ({e})") from None
+    m = _TYPE_RE.fullmatch(env.schema)
+    if m is None or m.group(1) not in _BY_BASE:
+        raise SchemaError(f"unknown schema {env.schema!r}; known: {', '.join(REGISTRY)}")
+    base, version = m.group(1), int(m.group(2))
+    versions = _BY_BASE[base]
+    if version not in versions:
+        raise SchemaError(
+            f"{env.schema}: version {version} not accepted; accepted versions of {base}: "
+            + ", ".join(f"v{v}" for v in sorted(versions))
+        )
+    if env.version != version:
+        raise SchemaError(f"{env.schema}: field `$.version` is {env.version}, the schema name says {version}")
+    cls = versions[version]
+    if expected_type is not None and cls is not expected_type:
+        raise SchemaError(f"{env.schema}: expected {expected_type.TYPE}")
+    try:
+        msg = _DECODERS[cls.TYPE].decode(data)
+    except msgspec.ValidationError as e:
+        raise SchemaError(f"{cls.TYPE}: {_field_msg(e)}") from None
+    except Exception as e:
+        raise SchemaError(f"{cls.TYPE}: malformed or truncated payload ({e})") from None
+    validate(msg)
+    return msg
+
+
+def _field_msg(e: Exception) -> str:
+    # msgspec says "Expected `int`, got `str` - at `$.seq`"; keep it, it names the path
+    return str(e)
+
+
+def validate(msg: Message, path: str = "$") -> None:
+    """Check schema name, array dtypes/shapes/byte counts/finiteness, nested
+    messages and type-specific rules. Raises SchemaError."""
+    cls = type(msg)
+    t = cls.TYPE
+    if msg.schema != t:
+        raise SchemaError(f"{t}: field `{path}.schema` is {msg.schema!r}, expected {t!r}")
+    if msg.version != _version_of(t):
+        raise SchemaError(f"{t}: field `{path}.version` is {msg.version}, expected {_version_of(t)}")
+    dims: dict[str, tuple[int, str]] = {}
+    for name, spec in cls.ARRAYS.items():
+        fpath = f"{path}.{name}"
+        a = getattr(msg, name)
+        if a is None:
+            if spec.optional:
+                continue
+            raise SchemaError(f"{t}: field `{fpath}` is required")
+        if isinstance(a, np.ndarray):  # assigned after construction
+            a = Array.from_numpy(a, spec.dtypes[0] if _wire_name_or_none(a.dtype) not in spec.dtypes else None)
+            setattr(msg, name, a)
+        if not isinstance(a, Array):
+            raise SchemaError(f"{t}: field `{fpath}` must be an array, got {type(a).__name__}")
+        problem = a.problem()
+        if problem:
+            raise SchemaError(f"{t}: field `{fpath}`: {problem}")
+        if a.dtype not in spec.dtypes:
+            raise SchemaError(f"{t}: field `{fpath}`: dtype {a.dtype} not allowed here (allowed: {', '.join(spec.dtypes)})")
+        if len(a.shape) != len(spec.shape):
+            raise SchemaError(f"{t}: field `{fpath}`: shape {tuple(a.shape)} does not match {_shape_str(spec.shape)}")
+        for size, want in zip(a.shape, spec.shape):
+            if isinstance(want, int):
+                if size != want:
+                    raise SchemaError(f"{t}: field `{fpath}`: shape {tuple(a.shape)} does not match {_shape_str(spec.shape)}")
+            elif want in dims and dims[want][0] != size:
+                other = dims[want]
+                raise SchemaError(
+                    f"{t}: field `{fpath}`: shape {tuple(a.shape)} does not match {_shape_str(spec.shape)} "
+                    f"with {want}={other[0]} from `{other[1]}`"
+                )
+            else:
+                dims[want] = (size, fpath)
+        if spec.finite and a.dtype in FLOAT_DTYPES:
+            v = a.numpy()
+            if not np.isfinite(v).all():
+                bad = int(np.flatnonzero(~np.isfinite(v.ravel()))[0])
+                raise SchemaError(f"{t}: field `{fpath}`: non-finite value (NaN/inf) at flat index {bad}")
+    for name in cls.__struct_fields__:
+        v = getattr(msg, name)
+        if isinstance(v, Message):
+            validate(v, f"{path}.{name}")
+    msg.check()
+
+
+def _shape_str(shape: tuple[int | str, ...]) -> str:
+    return "(" + ", ".join(str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+
+
+def json_schema(cls: type[Message]) -> bytes:
+    """JSON Schema of a message type (stored in MCAP as the schema data)."""
+    return msgspec.json.encode(msgspec.json.schema(cls))
+
+
+__all__ = [
+    "SchemaError", "Message", "PatternMsg", "EditMsg", "MeshMsg", "DrapeMsg", "StatusMsg",
+    "SolveRequestMsg", "SolveResultMsg", "MESSAGE_TYPES", "REGISTRY", "TOPIC_TYPES", "type_for_topic",
+    "encode", "decode", "validate", "peek_schema", "json_schema", "ArraySpec",
+]

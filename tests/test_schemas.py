@@ -1,0 +1,291 @@
+"""Message schemas: round trips, validation errors that name schema and field,
+random bytes, runtime-readable field types, mesh <-> GarmentMesh."""
+
+from __future__ import annotations
+
+import msgspec
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from couture.mesh import grid_sheet
+from schemas import (
+    MESSAGE_TYPES,
+    REGISTRY,
+    Array,
+    Design,
+    DrapeMsg,
+    EditMsg,
+    MeshMsg,
+    PatternMsg,
+    SchemaError,
+    SolveRequestMsg,
+    SolveResultMsg,
+    StatusMsg,
+    decode,
+    encode,
+    type_for_topic,
+)
+from schemas.convert import mesh_to_msg, msg_to_mesh
+from schemas.design import Stroke
+
+finite = st.floats(allow_nan=False, allow_infinity=False, width=64, min_value=-1e6, max_value=1e6)
+ints = st.integers(min_value=0, max_value=2**40)
+text = st.text(max_size=8)
+
+
+def _arr(draw, shape, dtype=np.float64):
+    n = int(np.prod(shape))
+    vals = draw(st.lists(finite, min_size=n, max_size=n))
+    return np.array(vals, dtype=dtype).reshape(shape)
+
+
+@st.composite
+def headers(draw):
+    return dict(seq=draw(ints), stamp_ns=draw(ints), generation=draw(ints))
+
+
+@st.composite
+def mesh_msgs(draw):
+    n = draw(st.integers(3, 6))
+    m = draw(st.integers(0, 4))
+    k = draw(st.integers(0, 3))
+    tris = np.array(draw(st.lists(st.lists(st.integers(0, n - 1), min_size=3, max_size=3), min_size=m, max_size=m)),
+                    np.int32).reshape(m, 3)
+    with_psi = draw(st.booleans())
+    return MeshMsg(
+        **draw(headers()), level=draw(st.sampled_from(["coarse", "fine"])), mesh_generation=draw(ints),
+        X=_arr(draw, (n, 2)), x0=_arr(draw, (n, 3)), tris=tris, tri_panel=np.zeros(m, np.int32), panel_names=["front"],
+        seam_emitters=np.arange(k, dtype=np.int32) % n, seam_edges=np.zeros((k, 2), np.int32),
+        seam_weights=_arr(draw, (k,)), pinned=np.array([0], np.int32),
+        psi=_arr(draw, (n, 2, 2)) if with_psi else None, psi_edit_id="e1" if with_psi else "",
+    )
+
+
+@st.composite
+def drape_msgs(draw):
+    n = draw(st.integers(0, 5))
+    return DrapeMsg(
+        **draw(headers()), level=draw(st.sampled_from(["coarse", "fine", "predicted"])),
+        x=_arr(draw, (n, 3), draw(st.sampled_from([np.float32, np.float64]))),
+        residual=draw(finite), iterations=draw(ints), solver=draw(text), method=draw(text), wall_time_s=draw(finite),
+        converged=draw(st.booleans()), diagnosis=draw(text), d=draw(st.one_of(st.none(), st.just(np.array([0.1, -0.2])))),
+        error_estimate=draw(st.one_of(st.none(), finite)),
+    )
+
+
+@st.composite
+def any_msgs(draw):
+    kind = draw(st.sampled_from([c.__name__ for c in MESSAGE_TYPES]))
+    h = draw(headers())
+    if kind == "PatternMsg":
+        strokes = [Stroke(id=draw(text), kind="curve", params={"t": draw(finite)})]
+        return PatternMsg(**h, design=Design(strokes=strokes), source=draw(text))
+    if kind == "EditMsg":
+        return EditMsg(**h, edit_id=draw(text), phase=draw(st.sampled_from(["press", "drag", "release"])),
+                       element=draw(text), dofs=["x"], d=_arr(draw, (2,)),
+                       view_proj=draw(st.one_of(st.none(), st.just(np.eye(4)))), viewport_px=[640, 480])
+    if kind == "MeshMsg":
+        return draw(mesh_msgs())
+    if kind == "DrapeMsg":
+        return draw(drape_msgs())
+    if kind == "StatusMsg":
+        return StatusMsg(**h, node=draw(text), pid=draw(ints), rates={"a": draw(finite)}, counters={"b": draw(ints)})
+    if kind == "SolveRequestMsg":
+        mm = draw(mesh_msgs())
+        return SolveRequestMsg(**h, request_id=draw(text), mesh=mm,
+                               x_warm=draw(st.one_of(st.none(), st.just(mm.x0.numpy()))), tol=draw(finite))
+    return SolveResultMsg(**h, request_id=draw(text), solver=draw(text), x=_arr(draw, (2, 3)), residual=draw(finite))
+
+
+def _same(a, b) -> bool:
+    return msgspec.msgpack.encode(a) == msgspec.msgpack.encode(b)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(any_msgs())
+def test_every_type_round_trips(msg):
+    data = encode(msg)
+    back = decode(data, type(msg))
+    assert type(back) is type(msg)
+    assert back.schema == type(msg).TYPE
+    assert _same(msg, back)
+
+
+def test_all_types_covered_by_round_trip_strategy():
+    assert {c.__name__ for c in MESSAGE_TYPES} == {
+        "PatternMsg", "EditMsg", "MeshMsg", "DrapeMsg", "StatusMsg", "SolveRequestMsg", "SolveResultMsg"}
+    for name, cls in REGISTRY.items():
+        assert name == cls.TYPE and name.startswith("couture/") and name.endswith("/v1")
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.binary(max_size=300))
+def test_random_bytes_only_raise_schema_error(data):
+    try:
+        decode(data)
+    except SchemaError:
+        pass
+
+
+@settings(max_examples=200, deadline=None)
+@given(drape_msgs(), st.integers(0, 10_000), st.integers(0, 255))
+def test_corrupted_payload_only_raises_schema_error(msg, pos, byte):
+    data = bytearray(encode(msg))
+    data[pos % len(data)] = byte
+    for candidate in (bytes(data), bytes(data[: pos % len(data)])):
+        try:
+            decode(candidate)
+        except SchemaError:
+            pass
+
+
+def test_every_field_has_a_runtime_readable_type():
+    for cls in MESSAGE_TYPES:
+        info = msgspec.inspect.type_info(cls)
+        assert isinstance(info, msgspec.inspect.StructType)
+        for f in info.fields:
+            assert not isinstance(f.type, msgspec.inspect.AnyType), f"{cls.TYPE}.{f.name} has no runtime type"
+        assert cls.__doc__ and "->" in cls.__doc__, f"{cls.TYPE} docstring must say who sends it to whom"
+
+
+def _drape(n=4, **kw):
+    return DrapeMsg(x=np.zeros((n, 3)), generation=1, **kw)
+
+
+def _raw(msg) -> dict:
+    return msgspec.msgpack.decode(msgspec.msgpack.encode(msg))
+
+
+def _err(d: dict) -> str:
+    with pytest.raises(SchemaError) as e:
+        decode(msgspec.msgpack.encode(d))
+    return str(e.value)
+
+
+def test_wrong_type_names_schema_and_field():
+    d = _raw(_drape())
+    d["iterations"] = "many"
+    msg = _err(d)
+    assert "couture/drape/v1" in msg and "$.iterations" in msg
+
+
+def test_missing_field_names_it():
+    d = _raw(_drape())
+    del d["x"]
+    msg = _err(d)
+    assert "couture/drape/v1" in msg and "x" in msg
+
+
+def test_unknown_schema_and_version_say_what_is_accepted():
+    d = _raw(_drape())
+    d["schema"] = "couture/drape/v7"
+    d["version"] = 7
+    msg = _err(d)
+    assert "couture/drape/v7" in msg and "v1" in msg and "accepted" in msg
+    d["schema"] = "couture/nonsense/v1"
+    assert "unknown schema" in _err(d)
+    assert "schema" in _err({"x": 1})
+
+
+def test_nan_in_positions_rejected_with_index():
+    x = np.zeros((3, 3))
+    x[2, 1] = np.nan
+    d = _raw(_drape())
+    d["x"] = _raw(Array.from_numpy(x))
+    msg = _err(d)
+    assert "$.x" in msg and "non-finite" in msg and "7" in msg
+    mm = _raw(mesh_to_msg(grid_sheet(1, 1, 4, 4)))
+    X = np.zeros((mm["X"]["shape"][0], 2))
+    X[0, 0] = np.inf
+    mm["X"] = _raw(Array.from_numpy(X))
+    assert "$.X" in _err(mm)
+
+
+def test_shape_bytecount_dtype_checked():
+    d = _raw(_drape())
+    d["x"]["data"] = d["x"]["data"][:-8]
+    assert "byte count" in _err(d)
+    d = _raw(_drape())
+    d["x"] = _raw(Array.from_numpy(np.zeros((4, 2))))
+    assert "shape" in _err(d) and "$.x" in _err(d)
+    d = _raw(_drape())
+    d["x"] = _raw(Array.from_numpy(np.zeros((4, 3), np.int32)))
+    assert "dtype int32 not allowed" in _err(d)
+    d["x"]["dtype"] = "complex128"
+    assert "complex128" in _err(d)
+
+
+def test_mesh_dimensions_consistent_and_indices_in_range():
+    mm = _raw(mesh_to_msg(grid_sheet(1, 1, 4, 4)))
+    mm["x0"] = _raw(Array.from_numpy(np.zeros((2, 3))))
+    msg = _err(mm)
+    assert "$.x0" in msg and "n=" in msg
+    mm = _raw(mesh_to_msg(grid_sheet(1, 1, 4, 4)))
+    tris = np.zeros((mm["tris"]["shape"][0], 3), np.int32)
+    tris[0, 0] = 10_000
+    mm["tris"] = _raw(Array.from_numpy(tris))
+    assert "$.tris" in _err(mm) and "outside" in _err(mm)
+
+
+def test_expected_type_mismatch_is_schema_error():
+    with pytest.raises(SchemaError, match="expected couture/mesh/v1"):
+        decode(encode(_drape()), MeshMsg)
+
+
+def test_truncated_payload_is_schema_error():
+    data = encode(_drape(100))
+    for cut in (1, 10, len(data) // 2, len(data) - 1):
+        with pytest.raises(SchemaError):
+            decode(data[:cut])
+
+
+def test_encode_rejects_bad_message_at_sender():
+    with pytest.raises(SchemaError, match=r"\$\.x"):
+        encode(DrapeMsg(x=np.full((2, 3), np.nan)))
+
+
+def test_numpy_scalars_become_plain_numbers():
+    msg = DrapeMsg(x=np.zeros((1, 3), np.float32), generation=np.int64(3), residual=np.float32(0.5),
+                   iterations=np.int32(7))
+    raw = msgspec.msgpack.decode(encode(msg))
+    assert raw["generation"] == 3 and type(raw["generation"]) is int
+    assert raw["residual"] == 0.5 and type(raw["residual"]) is float
+    back = decode(encode(msg))
+    assert back.x.numpy().dtype == np.float32
+
+
+def test_arrays_are_little_endian_raw_bytes():
+    a = np.arange(6, dtype=">f8").reshape(2, 3)
+    arr = Array.from_numpy(a)
+    assert arr.dtype == "float64" and arr.shape == [2, 3]
+    assert arr.data == np.arange(6, dtype="<f8").tobytes()
+    np.testing.assert_array_equal(arr.numpy(), a)
+
+
+def test_mesh_message_round_trips_garment_mesh():
+    g = grid_sheet(0.5, 0.3, 6, 5)
+    g.seam_emitters = np.array([0, 1], np.int32)
+    g.seam_edges = np.array([[2, 3], [3, 4]], np.int32)
+    g.seam_weights = np.array([0.25, 0.5])
+    g.pinned = np.array([5], np.int32)
+    g.panel_names = ["front"]
+    g.level, g.generation = "coarse", 4
+    msg = decode(encode(mesh_to_msg(g, mesh_generation=2)), MeshMsg)
+    assert msg.level == "coarse" and msg.generation == 4 and msg.mesh_generation == 2
+    back = msg_to_mesh(msg)
+    for name in ("X", "x0", "tris", "tri_panel", "seam_emitters", "seam_edges", "seam_weights", "pinned"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(g, name), err_msg=name)
+        assert getattr(back, name).dtype == getattr(g, name).dtype
+    assert back.panel_names == ["front"] and back.level == "coarse" and back.generation == 4
+    back.X[0, 0] = 1.0  # writable copy, not a view of the message bytes
+
+
+def test_topic_types():
+    assert type_for_topic("drape/fine") is DrapeMsg
+    assert type_for_topic("mesh/coarse") is MeshMsg
+    assert type_for_topic("solve/result/newton") is SolveResultMsg
+    assert type_for_topic("solve/request") is SolveRequestMsg
+    assert type_for_topic("status/ui") is StatusMsg
+    assert type_for_topic("drape/fine/extra") is None
