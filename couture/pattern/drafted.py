@@ -32,6 +32,9 @@ class Segment:
     name: str
     start: int
     stop: int
+    hole: int = -1
+    """-1: the segment lies on the outline; h >= 0: on ``holes[h]`` (interior
+    dart sides), indices then refer to that hole polyline"""
 
 
 @dataclass
@@ -41,6 +44,9 @@ class Placement:
     kind 'cylinder': material x wraps around the vertical axis through
     ``origin`` at ``radius`` starting at angle ``angle0`` [rad] (angle grows
     with x / radius), material y maps to world y (up) shifted by origin[1].
+    theta = 0 is world +z (the front), theta = pi/2 world +x. Optional
+    ``axis``/``ref``/``taper`` tilt the axis and make it a cone; the exact
+    mapping is ``couture.pattern.placement.place``.
     kind 'plane': world = origin + X[:, 0] * u + X[:, 1] * v.
     """
 
@@ -57,6 +63,15 @@ class Placement:
     """unit 3-vector for material y, plane only"""
     flip: bool = False
     """mirror material x (a back panel seen from behind), cylinder only"""
+    axis: np.ndarray | None = None
+    """unit 3-vector of the cylinder axis (material +y); None: world up. Tilted
+    for sleeves and trouser legs"""
+    ref: np.ndarray | None = None
+    """3-vector of the theta = 0 direction (projected normal to the axis);
+    None: world +z (the front). theta grows toward axis x ref"""
+    taper: float = 0.0
+    """radius growth per metre of material -y (a cone: flared skirts); the
+    radius at material y is ``radius - taper * y``"""
 
 
 @dataclass

@@ -1,13 +1,24 @@
-"""The remesher node (placeholder): joins the bus with liveliness and status and idles.
+"""The remesher node: pattern -> mesh/coarse + mesh/fine, Ψ on press.
 
-The node logic replaces the body of :func:`main`; keep its signature.
+A thin adapter over :class:`couture.remesh.service.RemeshService`. Bus
+callbacks only queue work; one worker thread drafts, meshes and publishes,
+newest pattern first. A bad pattern (validation error naming the element) is
+reported in the node's status and the last good meshes stay published.
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 
 from couture.bus import BusConfig, Node
+from couture.bus.worker import LatestWorker
+from couture.pattern.errors import PatternError
+from couture.remesh.service import MeshUpdate, RemeshService
+from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg
+from schemas.convert import mesh_to_msg
+
+log = logging.getLogger("remesher")
 
 
 @dataclass
@@ -18,5 +29,66 @@ class Config:
 
 
 def main(config: Config) -> None:
+    service = RemeshService()
     with Node(config.name, config.bus, kind="remesher") as node:
-        node.run()
+        bus = node.bus
+        pubs = {lv: bus.publisher(f"mesh/{lv}", MeshMsg) for lv in ("coarse", "fine")}
+        worker = LatestWorker("remesh", on_error=node.error)
+
+        def publish(up: MeshUpdate, generation: int, psi=None, edit_id: str = "") -> None:
+            msg = mesh_to_msg(
+                up.mesh, generation=generation, mesh_generation=up.mesh_generation,
+                psi=psi, psi_edit_id=edit_id,
+                fine_parent_tri=up.fine_parent_tri, fine_bary=up.fine_bary,
+            )
+            pubs[up.level].put(msg)
+
+        def on_pattern(msg: PatternMsg) -> None:
+            def job() -> None:
+                if msg.generation < service.generation:
+                    node.count("stale_patterns")
+                    return
+                try:
+                    updates = service.set_design(msg.design, msg.generation)
+                except PatternError as e:
+                    node.count("bad_patterns")
+                    node.error(f"pattern generation {msg.generation} rejected: {e}")
+                    return
+                for up in updates:
+                    publish(up, msg.generation)
+                    log.info("gen %d %s: %d vertices (%s, %.0f ms)", msg.generation, up.level,
+                             up.mesh.n_vertices, up.how, 1e3 * up.seconds)
+                node.count("meshes", len(updates))
+                worker.submit("warm", service.warm_coordinates)
+
+            worker.submit("pattern", job)
+
+        def on_edit(msg: EditMsg) -> None:
+            if msg.phase != "press" or not msg.element or msg.picked_vertex >= 0:
+                return  # 3D drags use the sensitivity node's parameter columns, not Ψ
+
+            def job() -> None:
+                try:
+                    psis = service.psi_for(msg.element)
+                except (PatternError, RuntimeError, KeyError) as e:
+                    node.error(f"edit {msg.edit_id}: no Ψ for {msg.element!r}: {e}")
+                    return
+                for level, st in service.levels.items():
+                    up = MeshUpdate(level, st.mesh, st.mesh_generation, "psi")
+                    publish(up, service.generation, psi=psis[level], edit_id=msg.edit_id)
+                node.count("psi")
+
+            worker.submit("press", job)
+
+        def on_drape(msg: DrapeMsg) -> None:
+            if msg.level in ("coarse", "fine"):
+                service.note_drape(msg.level, msg.mesh_generation, msg.x.numpy())
+
+        bus.subscribe("pattern", on_pattern)
+        bus.subscribe("edit", on_edit)
+        bus.subscribe("drape/coarse", on_drape)
+        bus.subscribe("drape/fine", on_drape)
+        try:
+            node.run()
+        finally:
+            worker.close()

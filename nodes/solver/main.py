@@ -1,13 +1,32 @@
-"""The solver node (placeholder): joins the bus with liveliness and status and idles.
+"""A solver node: mesh/* -> drape/coarse, drape/fine; answers solve queries.
 
-The node logic replaces the body of :func:`main`; keep its signature.
+A thin adapter over :class:`couture.solvers.service.SolveService`. Any of the
+three methods (kinetic, newton, verlet) runs behind the same topics, with its
+own node name on every drape, so two can run at once for comparison.
+
+Behaviour (DESIGN §2): a new pattern generation aborts the running solve; a
+press aborts it too and no solve runs while a drag is in progress (the
+sensitivity node previews); after release the next meshes warm-start from
+the last prediction. Progress drapes go out every ``progress_period_s``.
 """
 
 from __future__ import annotations
 
+import logging
+import threading
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from couture.bus import BusConfig, Node
+from couture.bus.worker import LatestWorker
+from couture.cloth.model import ClothModel
+from couture.solvers import get_solver
+from couture.solvers.service import LevelRun, SolveService, scene_from_design
+from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, SolveRequestMsg, SolveResultMsg
+from schemas.convert import msg_to_mesh
+
+log = logging.getLogger("solver")
 
 
 @dataclass
@@ -16,9 +35,120 @@ class Config:
     name: str = "solver-kinetic"
     """node name, unique in the session (liveliness key status/<name>)"""
     solver: str = "kinetic"
-    """which solver this node runs: kinetic, newton, verlet"""
+    """'kinetic', 'newton' or 'verlet'"""
+    progress_period_s: float = 0.5
+    """[s] between progress drapes during a solve"""
 
 
 def main(config: Config) -> None:
+    service = SolveService(method=config.solver)
     with Node(config.name, config.bus, kind="solver") as node:
-        node.run()
+        bus = node.bus
+        pubs = {lv: bus.publisher(f"drape/{lv}", DrapeMsg) for lv in ("coarse", "fine")}
+        worker = LatestWorker("solve", on_error=node.error)
+        lock = threading.Lock()
+        state = {"generation": -1, "dragging": False, "abort": False}
+
+        def drape_msg(level: str, x: np.ndarray, res: float, it: int, wall: float,
+                      converged: bool = False, diagnosis: str = "") -> DrapeMsg:
+            lm = service.levels[level]
+            return DrapeMsg(level=level, x=x.astype(np.float32), residual=float(res), iterations=int(it),
+                            solver=config.name, method=config.solver, wall_time_s=float(wall),
+                            converged=converged, diagnosis=diagnosis, generation=lm.mesh.generation,
+                            mesh_generation=lm.mesh_generation)
+
+        def should_abort() -> bool:
+            return state["abort"] or node.stopping
+
+        def on_progress(level: str, it: int, x: np.ndarray, res: float) -> None:
+            pubs[level].put(drape_msg(level, x, res, it, 0.0))
+
+        def on_level(run: LevelRun) -> None:
+            r = run.result
+            pubs[run.level].put(drape_msg(run.level, r.x, r.residual, r.iterations, r.wall_time,
+                                          r.converged, r.diagnosis))
+            node.count(f"solves/{run.level}")
+            log.info("gen %d %s: residual %.2e after %d its in %.2f s (%s, from %s)%s",
+                     service.levels[run.level].mesh.generation, run.level, r.residual, r.iterations,
+                     r.wall_time, config.solver, run.warm_start, f" [{r.diagnosis}]" if r.diagnosis else "")
+            if r.diagnosis and not r.converged and "abort" not in r.diagnosis.lower():
+                node.error(f"{run.level}: {r.diagnosis}")
+
+        def solve_job() -> None:
+            with lock:
+                if state["dragging"] or not service.ready():
+                    return
+                state["abort"] = False
+            service.run(should_abort=should_abort, on_progress=on_progress, on_level=on_level,
+                        progress_period_s=config.progress_period_s)
+
+        def on_pattern(msg: PatternMsg) -> None:
+            if msg.generation < state["generation"]:
+                return
+            state["generation"] = msg.generation
+            state["abort"] = True  # a new design supersedes the running solve
+
+            def job() -> None:
+                if service.set_design(msg.design) and service.ready():
+                    worker.submit("solve", solve_job)
+            worker.submit("design", job)
+
+        def on_mesh(msg: MeshMsg) -> None:
+            if msg.generation < state["generation"]:
+                node.count("stale_meshes")
+                return
+            lm = service.levels.get(msg.level)
+            if lm is not None and lm.mesh_generation == msg.mesh_generation:
+                return  # a Ψ re-send of the mesh we hold
+            mesh = msg_to_mesh(msg)
+            prolong = None
+            if msg.fine_parent_tri is not None and msg.fine_bary is not None:
+                prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
+
+            def job() -> None:
+                service.set_mesh(msg.level, mesh, msg.mesh_generation, prolong)
+                if service.ready():
+                    worker.submit("solve", solve_job)
+            state["abort"] = True
+            worker.submit(f"mesh/{msg.level}", job)
+
+        def on_edit(msg: EditMsg) -> None:
+            if msg.phase == "press":
+                state["dragging"] = True
+                state["abort"] = True
+            elif msg.phase == "release":
+                state["dragging"] = False
+
+        def on_prediction(msg: DrapeMsg) -> None:
+            service.set_prediction(msg.mesh_level, msg.mesh_generation, msg.x.numpy())
+
+        def handle_solve(req: SolveRequestMsg) -> SolveResultMsg:
+            design = req.design or service.design
+            if design is None:
+                raise RuntimeError("request has no design and this solver has seen no pattern")
+            if req.mesh is not None:
+                mesh = msg_to_mesh(req.mesh)
+            else:
+                lm = service.levels.get(req.level)
+                if lm is None or lm.mesh_generation != req.mesh_generation:
+                    raise RuntimeError(f"no {req.level} mesh of mesh_generation {req.mesh_generation} here")
+                mesh = lm.mesh
+            model = ClothModel(mesh, design.fabric, scene_from_design(design))
+            x0 = req.x_warm.numpy() if req.x_warm is not None else mesh.x0
+            r = get_solver(config.solver).solve(model, np.array(x0), tol=req.tol, max_iters=req.max_iters,
+                                                max_seconds=req.max_seconds)
+            return SolveResultMsg(method=config.solver, level=req.level, mesh_generation=req.mesh_generation,
+                                  x=r.x, residual=r.residual, iterations=r.iterations, wall_time_s=r.wall_time,
+                                  converged=r.converged, diagnosis=r.diagnosis)
+
+        bus.subscribe("pattern", on_pattern)
+        bus.subscribe("mesh/coarse", on_mesh)
+        bus.subscribe("mesh/fine", on_mesh)
+        bus.subscribe("edit", on_edit)
+        bus.subscribe("drape/predicted", on_prediction)
+        bus.serve_solve(config.name, handle_solve)
+        try:
+            node.run()
+        finally:
+            state["abort"] = True
+            worker.close()

@@ -1,0 +1,397 @@
+"""Slopers: base patterns drafted from body measurements and style options.
+
+Each sloper is a function of its resolved options returning a
+:class:`SloperDraft`: panels as chains of named segments, each segment a chain
+of smooth curves (lines and cubic Béziers) whose control points are smooth
+functions of the options, so drafting is differentiable in every non-integer
+option. Material coordinates: metres, y up; for garments hung from the waist
+y = 0 is the waist line, for sleeves y = 0 is the top of the cap.
+
+Option tables are :data:`SLOPERS` ``[kind].options``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from couture.pattern import mannequin as M
+from couture.pattern import options as O
+from couture.pattern.geometry import Curve, bezier, line
+from couture.pattern.options import Option, opt
+
+
+@dataclass
+class SegDef:
+    name: str
+    curves: list[Curve]
+
+
+@dataclass
+class PanelDef:
+    name: str
+    segments: list[SegDef]
+    """counter-clockwise, closed: each segment starts where the previous ends"""
+
+
+@dataclass
+class Ring:
+    """Panels wrapped around one (possibly tilted, possibly conical) cylinder."""
+
+    panels: list[str]
+    angles: list[float]
+    """[rad] centre angle of each panel (theta = 0 is the ref direction)"""
+    origin: np.ndarray
+    """[m] axis point where material y = 0"""
+    axis: np.ndarray | None = None
+    """unit vector of material +y; None: world up"""
+    ref: np.ndarray | None = None
+    """theta = 0 direction; None: world +z (front)"""
+    body_radius: Callable[[np.ndarray], np.ndarray] | None = None
+    """material y -> body radius about the axis [m]"""
+    margin: float = 0.025
+    max_radius: float = 1.0
+
+
+@dataclass
+class BuiltinDart:
+    """A dart that is part of the sloper (its size follows the options)."""
+
+    id: str
+    panel: str
+    kind: str
+    """'boundary' or 'interior'"""
+    params: dict
+
+
+@dataclass
+class SloperDraft:
+    panels: list[PanelDef]
+    seams: list[tuple[str, str, str, str]] = field(default_factory=list)
+    rings: list[Ring] = field(default_factory=list)
+    darts: list[BuiltinDart] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class SloperDef:
+    kind: str
+    options: tuple[Option, ...]
+    draft: Callable[[dict[str, float]], SloperDraft]
+    doc: str
+
+
+def _mirror_panel(name: str, right: list[SegDef], top: SegDef | None, bottom: SegDef | None) -> PanelDef:
+    """A panel symmetric about x = 0 from its right half.
+
+    ``right``: the right-side segments, bottom to top (CCW order on the right);
+    ``top``/``bottom``: full-width segments crossing x = 0 (given whole).
+    Left segments are the mirrored right ones, renamed ``*_right -> *_left``.
+    """
+    def mirror(seg: SegDef) -> SegDef:
+        curves = [Curve(c.pts[::-1] * np.array([-1.0, 1.0])) for c in reversed(seg.curves)]
+        return SegDef(seg.name.replace("_right", "_left"), curves)
+
+    segs = []
+    if bottom is not None:
+        segs.append(bottom)
+    segs.extend(right)
+    if top is not None:
+        segs.append(top)
+    segs.extend(mirror(s) for s in reversed(right))
+    return PanelDef(name, segs)
+
+
+def _skirt_side(ww, wh, h, L, f):
+    """Right side seam (hem corner -> hip -> waist) and the hem corner, hem handle."""
+    a = wh / 2
+    tf, t2 = np.tan(f), np.tan(f / 2)
+    xh = (a + (L - h) * tf) / (1 + t2 * tf)
+    yc = -L + xh * t2
+    C = np.array([xh, yc])
+    H = np.array([a, -h])
+    W = np.array([ww / 2, 0.0])
+    up = np.array([-np.sin(f), np.cos(f)])
+    side = [line(C, H), bezier(H, H + up * h / 3, W + np.array([0, -h / 3]), W)]
+    k = (2.0 / 3.0) * xh / np.cos(f / 2) ** 2
+    return side, C, k, f
+
+
+def _hem(C, k, f) -> SegDef:
+    Cl = C * np.array([-1.0, 1.0])
+    return SegDef("hem", [bezier(Cl, Cl + k * np.array([np.cos(f), -np.sin(f)]),
+                                  C - k * np.array([np.cos(f), np.sin(f)]), C)])
+
+
+def _torso_body_radius(y_waist: float):
+    return lambda ym: M.body_radius(y_waist + np.asarray(ym))
+
+
+# ---------------------------------------------------------------- skirt
+
+SKIRT_OPTIONS = (
+    O.WAIST, O.HIP, O.WAIST_TO_HIP,
+    opt("length", 0.60, 0.38, 1.00, "m", "waist to hem at centre"),
+    opt("flare", 0.12, 0.0, 0.60, "rad", "angle of each side seam from vertical below the hip"),
+    opt("panels", 4, 2, 8, "count", "number of panels (gores); topology option", integer=True),
+    opt("waist_ease", 0.01, 0.0, 0.08, "m", "added to the waist girth"),
+    opt("hip_ease", 0.04, 0.0, 0.15, "m", "added to the hip girth"),
+)
+
+
+def skirt_panels(prefix_names: list[str], p, ww_total, wh_total, L) -> list[PanelDef]:
+    n = len(prefix_names)
+    side, C, k, f = _skirt_side(ww_total / n, wh_total / n, p["waist_to_hip"], L, p["flare"])
+    out = []
+    for name in prefix_names:
+        W = side[-1].pts[-1]
+        waist = SegDef("waist", [line(W, W * np.array([-1.0, 1.0]))])
+        out.append(_mirror_panel(name, [SegDef("side_right", side)], waist, _hem(C, k, f)))
+    return out
+
+
+def draft_skirt(p: dict[str, float]) -> SloperDraft:
+    """A-line skirt of n identical gores; gore 0 centred at the front."""
+    n = int(round(p["panels"]))
+    names = ["front", "back"] if n == 2 else [f"gore{i}" for i in range(n)]
+    panels = skirt_panels(names, p, p["waist_girth"] + p["waist_ease"], p["hip_girth"] + p["hip_ease"], p["length"])
+    seams = [(names[i], "side_right", names[(i + 1) % n], "side_left") for i in range(n)]
+    ring = Ring(names, [2 * np.pi * i / n for i in range(n)], np.array([0.0, M.WAIST_Y + 0.01, M.TORSO_AXIS_Z]),
+                body_radius=_torso_body_radius(M.WAIST_Y + 0.01))
+    return SloperDraft(panels, seams, [ring])
+
+
+# ---------------------------------------------------------------- bodice pieces
+
+def _bodice_right(p, ww, bw, neck_depth, below: list[Curve], start):
+    """Right half of a bodice above the waist: side (from ``start``), armhole,
+    shoulder; plus the neck point. ``below`` are side curves below the waist."""
+    hu, hs = p["waist_to_underarm"], p["waist_to_shoulder"]
+    W = np.array([ww / 2, 0.0]) if start is None else start
+    U = np.array([bw / 2, hu])
+    S = np.array([p["shoulder_width"] / 2, hs])
+    nr = p["neck_girth"] / (2 * np.pi) + 0.01
+    N = np.array([nr, hs + 0.025])
+    side = SegDef("side_right", below + [bezier(W, W + np.array([0, hu / 3]), U - np.array([0, hu / 3]), U)])
+    inner = min(U[0], S[0]) - 0.03
+    arm = SegDef("armhole_right", [bezier(U, np.array([inner, U[1] + 0.005]),
+                                         np.array([S[0] - 0.01, S[1] - 0.4 * (S[1] - U[1])]), S)])
+    shoulder = SegDef("shoulder_right", [line(S, N)])
+    Nl = N * np.array([-1.0, 1.0])
+    neck = SegDef("neck", [bezier(N, N + np.array([0, -0.55 * neck_depth]),
+                                  np.array([0.55 * nr, N[1] - neck_depth]), np.array([0.0, N[1] - neck_depth])),
+                           bezier(np.array([0.0, N[1] - neck_depth]), np.array([-0.55 * nr, N[1] - neck_depth]),
+                                  Nl + np.array([0, -0.55 * neck_depth]), Nl)])
+    return [side, arm, shoulder], neck
+
+
+# ---------------------------------------------------------------- dress
+
+DRESS_OPTIONS = (
+    O.BUST, O.WAIST, O.HIP, O.WAIST_TO_HIP, O.WAIST_TO_UNDERARM, O.WAIST_TO_SHOULDER, O.SHOULDER_WIDTH,
+    O.NECK_GIRTH,
+    opt("length", 0.55, 0.38, 1.00, "m", "waist to hem"),
+    opt("flare", 0.06, 0.0, 0.40, "rad", "side seam angle below the hip"),
+    opt("bust_ease", 0.06, 0.0, 0.20, "m", "added to the bust girth"),
+    opt("waist_ease", 0.04, 0.0, 0.15, "m", "added to the waist girth"),
+    opt("hip_ease", 0.05, 0.0, 0.15, "m", "added to the hip girth"),
+    opt("waist_dart_width", 0.02, 0.005, 0.04, "m", "width of each of the 4 waist (diamond) darts"),
+    opt("bust_dart_width", 0.015, 0.0, 0.04, "m", "width of the front armhole bust darts"),
+    opt("front_neck_depth", 0.07, 0.01, 0.20, "m", "front neckline drop below the neck point"),
+)
+
+
+def draft_dress(p: dict[str, float]) -> SloperDraft:
+    """Fitted sheath dress: front and back, each one piece from shoulder to hem,
+    shaped by waist diamond darts (interior) and armhole bust darts (boundary)."""
+    dw = p["waist_dart_width"]
+    ww = (p["waist_girth"] + p["waist_ease"]) / 2 + 2 * dw  # side-seam waist width incl. 2 darts
+    bw = (p["bust_girth"] + p["bust_ease"]) / 2
+    wh = (p["hip_girth"] + p["hip_ease"]) / 2
+    panels = []
+    for name, depth in (("front", p["front_neck_depth"]), ("back", 0.02)):
+        side, C, k, f = _skirt_side(ww, wh, p["waist_to_hip"], p["length"], p["flare"])
+        right, neck = _bodice_right(p, ww, bw, depth, side, side[-1].pts[-1])
+        panels.append(_mirror_panel(name, right, neck, _hem(C, k, f)))
+    seams = [("front", "side_right", "back", "side_left"), ("back", "side_right", "front", "side_left"),
+             ("front", "shoulder_right", "back", "shoulder_left"), ("back", "shoulder_right", "front", "shoulder_left")]
+    darts = []
+    for name in ("front", "back"):
+        for side_name, pos in (("l", 0.30), ("r", 0.70)):
+            darts.append(BuiltinDart(f"{name}.waist_dart_{side_name}", name, "interior",
+                                     {"anchor": "hem", "position": pos, "depth": p["length"] - 0.02,
+                                      "width": dw, "length": 0.30, "offset": 0.0}))
+    if p["bust_dart_width"] > 0:
+        for s in ("left", "right"):
+            darts.append(BuiltinDart(f"front.bust_dart_{s}", "front", "boundary",
+                                     {"segment": f"armhole_{s}", "position": 0.35, "width": p["bust_dart_width"],
+                                      "length": 0.3 * (p["waist_to_shoulder"] - p["waist_to_underarm"])}))
+    ring = Ring(["front", "back"], [0.0, np.pi], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]),
+                body_radius=_torso_body_radius(M.WAIST_Y))
+    return SloperDraft(panels, seams, [ring], darts)
+
+
+# ---------------------------------------------------------------- shirt
+
+SHIRT_OPTIONS = (
+    O.BUST, O.WAIST_TO_UNDERARM, O.WAIST_TO_SHOULDER, O.SHOULDER_WIDTH, O.NECK_GIRTH, O.ARM_GIRTH, O.HIP,
+    opt("length", 0.20, 0.05, 0.45, "m", "waist to hem"),
+    opt("ease", 0.10, 0.02, 0.30, "m", "added to bust and hip girths"),
+    opt("sleeve_length", 0.22, 0.18, 0.40, "m", "cap top to sleeve hem (short to below the elbow)"),
+    opt("sleeve_ease", 0.06, 0.02, 0.20, "m", "added to the upper arm girth"),
+    opt("cuff", 0.30, 0.18, 0.50, "m", "sleeve hem circumference"),
+    opt("cap_height", 0.10, 0.05, 0.14, "m", "sleeve cap height"),
+    opt("front_neck_depth", 0.06, 0.01, 0.15, "m", "front neckline drop"),
+)
+
+
+def _arm_frame(sign: float):
+    a = M.LEFT_ARM_AXIS * np.array([sign, 1.0, 1.0])
+    a = a / np.linalg.norm(a)
+    v = np.array([sign, 1.0, 0.0]) / np.sqrt(2)
+    f = v - (v @ a) * a
+    return a, f / np.linalg.norm(f)
+
+
+def draft_shirt(p: dict[str, float]) -> SloperDraft:
+    """Shirt block with set-in sleeves: front, back, left and right sleeves."""
+    bw = (p["bust_girth"] + p["ease"]) / 2
+    hw = (p["hip_girth"] + p["ease"]) / 2
+    L = p["length"]
+    panels = []
+    for name, depth in (("front", p["front_neck_depth"]), ("back", 0.02)):
+        C = np.array([max(hw, bw) / 2, -L])
+        W = np.array([bw / 2 + 0.5 * (C[0] - bw / 2), 0.0])
+        below = [line(C, W)]
+        right, neck = _bodice_right(p, 2 * W[0], bw, depth, below, W)
+        hem = SegDef("hem", [line(C * np.array([-1.0, 1.0]), C)])
+        panels.append(_mirror_panel(name, right, neck, hem))
+    # sleeve: cap top at (0, 0), wrist at y = -sleeve_length
+    sw = (p["upper_arm_girth"] + p["sleeve_ease"]) / 2
+    ch, sl, cw = p["cap_height"], p["sleeve_length"], p["cuff"] / 2
+    B = np.array([sw, -ch])  # underarm point (right)
+    Cf = np.array([cw, -sl])
+    T = np.array([0.0, 0.0])
+    cap_r = SegDef("cap_right", [bezier(B, B + np.array([-0.35 * sw, 0.15 * ch]), T + np.array([0.45 * sw, 0.0]), T)])
+    cap_l = SegDef("cap_left", [bezier(T, T - np.array([0.45 * sw, 0.0]), B * np.array([-1, 1]) + np.array([0.35 * sw, 0.15 * ch]),
+                                       B * np.array([-1.0, 1.0]))])
+    under_r = SegDef("underarm_right", [line(Cf, B)])
+    under_l = SegDef("underarm_left", [line(B * np.array([-1.0, 1.0]), Cf * np.array([-1.0, 1.0]))])
+    cuff = SegDef("cuff", [line(Cf * np.array([-1.0, 1.0]), Cf)])
+    for name in ("sleeve_left", "sleeve_right"):
+        panels.append(PanelDef(name, [cuff, under_r, cap_r, cap_l, under_l]))
+    seams = [("front", "side_right", "back", "side_left"), ("back", "side_right", "front", "side_left"),
+             ("front", "shoulder_right", "back", "shoulder_left"), ("back", "shoulder_right", "front", "shoulder_left"),
+             ("sleeve_left", "underarm_right", "sleeve_left", "underarm_left"),
+             ("sleeve_right", "underarm_right", "sleeve_right", "underarm_left")]
+    rings = [Ring(["front", "back"], [0.0, np.pi], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]),
+                  body_radius=_torso_body_radius(M.WAIST_Y))]
+    for name, sign in (("sleeve_left", 1.0), ("sleeve_right", -1.0)):
+        a, f = _arm_frame(sign)
+        b = np.cross(a, f)
+        # sleeve material +x points along b: the cap half on that side faces front (b_z > 0) or back
+        plus_front = b[2] > 0
+        # the armhole on this arm's side: front/back 'armhole_left' is at world -x... material +x of
+        # front is world +x (left arm); of back is world -x
+        front_arm = "armhole_right" if sign > 0 else "armhole_left"
+        back_arm = "armhole_left" if sign > 0 else "armhole_right"
+        if plus_front:
+            seams += [(name, "cap_right", "front", front_arm), (name, "cap_left", "back", back_arm)]
+        else:
+            seams += [(name, "cap_right", "back", back_arm), (name, "cap_left", "front", front_arm)]
+        # cap top a little down the arm, clear of the shoulder
+        origin = M.LEFT_ARM_SHOULDER * np.array([sign, 1.0, 1.0]) - 0.03 * a
+        rings.append(Ring([name], [0.0], origin, axis=a, ref=f,
+                          body_radius=lambda ym: np.full(np.shape(ym), M.ARM_RADIUS), margin=0.02))
+    return SloperDraft(panels, seams, rings)
+
+
+# ---------------------------------------------------------------- trousers
+
+TROUSERS_OPTIONS = (
+    O.WAIST, O.HIP, O.WAIST_TO_HIP, O.CROTCH_DEPTH, O.THIGH, O.ANKLE,
+    opt("length", 0.95, 0.40, 1.10, "m", "waist to hem along the side seam"),
+    opt("waist_ease", 0.02, 0.0, 0.10, "m", "added to the waist girth"),
+    opt("hip_ease", 0.05, 0.0, 0.15, "m", "added to the hip girth"),
+    opt("hem_ease", 0.10, 0.0, 0.40, "m", "added to the ankle girth at the hem"),
+    opt("crotch_extension", 0.05, 0.02, 0.10, "m", "how far the crotch point reaches past the centre line"),
+)
+
+
+def draft_trousers(p: dict[str, float]) -> SloperDraft:
+    """Trousers: front and back panel per leg. Each panel: material x grows from
+    the centre (crotch) edge to the side seam for the left leg (mirrored for
+    the right leg so every outline stays counter-clockwise)."""
+    h, cd, L = p["waist_to_hip"], p["crotch_depth"], p["length"]
+    ww = (p["waist_girth"] + p["waist_ease"]) / 4
+    wh = (p["hip_girth"] + p["hip_ease"]) / 4
+    ext = p["crotch_extension"]
+    hem_w = (p["ankle_girth"] + p["hem_ease"]) / 2
+    thigh_w = (p["thigh_girth"] + 0.06) / 2
+    hh = min(h, 0.9 * cd)  # the hip line stays above the crotch
+    panels = []
+    # left-leg front panel, centre at x = 0 edge, side seam at x = +wh
+    Wc = np.array([0.0, 0.0])  # centre waist
+    Ws = np.array([ww, 0.0])  # side waist
+    Hs = np.array([wh, -hh])
+    Cr = np.array([-ext, -cd])  # crotch point
+    # leg hem centred under the knee line: x mid of thigh
+    mid = 0.5 * (wh - ext)
+    K_in = np.array([mid - thigh_w / 2 + 0.01, -cd - 0.05])
+    Hem_in = np.array([mid - hem_w / 2, -L])
+    Hem_out = np.array([mid + hem_w / 2, -L])
+    segs = [
+        SegDef("hem", [line(Hem_in, Hem_out)]),
+        SegDef("side", [bezier(Hem_out, Hem_out + np.array([0.0, 0.3 * (L - hh)]), Hs + np.array([0.0, -0.3 * (L - hh)]), Hs),
+                        bezier(Hs, Hs + np.array([0, hh / 3]), Ws + np.array([0, -hh / 3]), Ws)]),
+        SegDef("waist", [line(Ws, Wc)]),
+        SegDef("center", [bezier(Wc, Wc + np.array([0.0, -0.5 * cd]), Cr + np.array([0.4 * ext, 0.25 * cd]), Cr)]),
+        SegDef("inseam", [bezier(Cr, K_in + np.array([-0.02, 0.03]), K_in, K_in + np.array([0.0, -0.05])),
+                          line(K_in + np.array([0.0, -0.05]), Hem_in)]),
+    ]
+    # the crotch extension is deeper at the back
+    for name in ("front_left", "back_left", "front_right", "back_right"):
+        # material +x must run with the wrap angle: outward for the left front and
+        # right back, toward the centre for the other two (mirrored drafts)
+        mirror = name in ("back_left", "front_right")
+        s = segs
+        if mirror:  # mirror x and reverse to stay CCW
+            s = [SegDef(sg.name, [Curve(c.pts[::-1] * np.array([-1.0, 1.0])) for c in reversed(sg.curves)])
+                 for sg in reversed(segs)]
+        panels.append(PanelDef(name, [SegDef(sg.name, list(sg.curves)) for sg in s]))
+    seams = [("front_left", "side", "back_left", "side"), ("front_left", "inseam", "back_left", "inseam"),
+             ("front_right", "side", "back_right", "side"), ("front_right", "inseam", "back_right", "inseam"),
+             ("front_left", "center", "front_right", "center"), ("back_left", "center", "back_right", "center")]
+    rings = []
+    for leg, sign in (("left", 1.0), ("right", -1.0)):
+        a = M.LEFT_LEG_AXIS * np.array([sign, 1.0, 1.0])
+        a = a / np.linalg.norm(a)
+        top = M.LEFT_LEG_TOP * np.array([sign, 1.0, 1.0])
+        # axis point at the waist line (material y = 0)
+        origin = top + a * ((M.WAIST_Y - top[1]) / a[1])
+        f = np.array([0.0, 0.0, 1.0]) - a[2] * a
+        f /= np.linalg.norm(f)
+        # panel centres: front turned a little outward, back likewise, so the
+        # centre edges of the two legs do not overlap at the crotch
+        off = 0.25
+        rings.append(Ring([f"front_{leg}", f"back_{leg}"],
+                          [sign * off, np.pi - sign * off], origin, axis=a, ref=f,
+                          body_radius=_leg_body_radius, margin=0.025))
+    return SloperDraft(panels, seams, rings)
+
+
+def _leg_body_radius(ym):
+    """Body radius about a leg axis by material height (pelvis above the crotch)."""
+    y = M.WAIST_Y + np.asarray(ym)
+    return np.interp(y, [M.FLOOR_Y, M.KNEE_Y, M.CROTCH_Y - 0.1, M.CROTCH_Y, M.HIP_Y + 0.1, M.WAIST_Y + 0.05],
+                     [0.09, 0.08, 0.095, 0.14, 0.22, 0.20])
+
+
+SLOPERS: dict[str, SloperDef] = {
+    "skirt": SloperDef("skirt", SKIRT_OPTIONS, draft_skirt, draft_skirt.__doc__),
+    "dress": SloperDef("dress", DRESS_OPTIONS, draft_dress, draft_dress.__doc__),
+    "shirt": SloperDef("shirt", SHIRT_OPTIONS, draft_shirt, draft_shirt.__doc__),
+    "trousers": SloperDef("trousers", TROUSERS_OPTIONS, draft_trousers, draft_trousers.__doc__),
+}
+"""sloper kind -> its option table and drafting function"""

@@ -1,0 +1,165 @@
+"""The remesher's state machine, free of bus code (nodes/remesher adapts it).
+
+Given successive designs it keeps one mesh per level and decides, per SC §6,
+how to carry it forward:
+
+- same drafted structure (same panels and polyline vertex counts): the *same*
+  mesh follows the pattern (boundary on the new polylines, interior by PMVC),
+  so vertices, per-vertex state and warm starts survive; then Delaunay flips
+  if quality dropped; a full remesh only if quality stays below the threshold,
+  with the 3D state carried over by barycentric interpolation in 2D;
+- otherwise a new mesh.
+
+It also answers a press with Ψ for the edited element on both levels, and
+owns the coarse -> fine prolongation map.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from couture.mesh import GarmentMesh
+from couture.pattern.drafted import DraftedPattern
+from couture.pattern.edit import edit_jacobian
+from couture.pattern.validate import validate
+from couture.remesh.meshing import RemeshResult, _place, mesh_pattern
+from couture.remesh.psi import PsiCoordinates, build_coordinates, follow_pattern, psi
+from couture.remesh.quality import improve
+from couture.remesh.transfer import prolongation, transfer_state
+from schemas.design import Design
+
+log = logging.getLogger(__name__)
+
+LEVELS = ("coarse", "fine")
+
+
+def structure_key(drafted: DraftedPattern) -> tuple:
+    """What must stay equal for a mesh to follow a pattern edit."""
+    return tuple(
+        (p.name, len(p.outline), tuple(len(h) for h in p.holes)) for p in drafted.panels
+    ) + tuple((s.a_panel, s.a_segment, s.b_panel, s.b_segment) for s in drafted.seams)
+
+
+@dataclass
+class LevelState:
+    result: RemeshResult
+    mesh: GarmentMesh
+    mesh_generation: int
+    target: int
+    coords: PsiCoordinates | None = None
+    last_x: np.ndarray | None = None
+    """latest drape on this mesh (for state transfer), shape (n, 3)"""
+
+
+@dataclass
+class MeshUpdate:
+    level: str
+    mesh: GarmentMesh
+    mesh_generation: int
+    how: str
+    """'new', 'followed', 'flipped', 'remeshed'"""
+    fine_parent_tri: np.ndarray | None = None
+    fine_bary: np.ndarray | None = None
+    seconds: float = 0.0
+
+
+@dataclass
+class RemeshService:
+    levels: dict[str, LevelState] = field(default_factory=dict)
+    design: Design | None = None
+    drafted: DraftedPattern | None = None
+    key: tuple | None = None
+    generation: int = -1
+    _mesh_gen: int = 0
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def _next_mesh_gen(self) -> int:
+        self._mesh_gen += 1
+        return self._mesh_gen
+
+    def set_design(self, design: Design, generation: int) -> list[MeshUpdate]:
+        """Draft, validate and mesh a design; raises PatternError naming the bad element."""
+        drafted = validate(design)
+        key = structure_key(drafted)
+        targets = {"coarse": design.resolution.coarse_vertices, "fine": design.resolution.fine_vertices}
+        updates: list[MeshUpdate] = []
+        with self._lock:
+            for level in LEVELS:
+                t0 = time.perf_counter()
+                st = self.levels.get(level)
+                if st is not None and key == self.key and st.target == targets[level]:
+                    up = self._follow(level, st, drafted, generation)
+                else:
+                    up = self._new(level, drafted, targets[level], generation)
+                up.seconds = time.perf_counter() - t0
+                updates.append(up)
+            coarse, fine = self.levels["coarse"], self.levels["fine"]
+            parent, bary = prolongation(coarse.mesh, fine.mesh)
+            updates[1].fine_parent_tri, updates[1].fine_bary = parent, bary
+            self.design, self.drafted, self.key, self.generation = design, drafted, key, generation
+        return updates
+
+    def _new(self, level: str, drafted: DraftedPattern, target: int, generation: int) -> MeshUpdate:
+        res = mesh_pattern(drafted, target, level=level, generation=generation)
+        st = LevelState(result=res, mesh=res.mesh, mesh_generation=self._next_mesh_gen(), target=target)
+        self.levels[level] = st
+        return MeshUpdate(level, st.mesh, st.mesh_generation, "new")
+
+    def _coords(self, st: LevelState) -> PsiCoordinates:
+        if st.coords is None:
+            st.coords = build_coordinates(st.result, "pmvc")
+        return st.coords
+
+    def _follow(self, level: str, st: LevelState, drafted: DraftedPattern, generation: int) -> MeshUpdate:
+        X = follow_pattern(self._coords(st), drafted)
+        tris, report = improve(X, st.mesh.tris)
+        old = st.mesh
+        if report.needs_remesh:
+            log.info("%s: quality %.3f after flips, remeshing", level, report.min_quality)
+            up = self._new(level, drafted, st.target, generation)
+            if st.last_x is not None:
+                new = up.mesh
+                new.x0 = transfer_state(old.X, old.tris, st.last_x, new.X,
+                                        old_tri_panel=old.tri_panel,
+                                        new_vertex_panel=self.levels[level].result.vertex_panel)
+            up.how = "remeshed"
+            return up
+        x0 = st.last_x if st.last_x is not None else _place(drafted, X, st.result.vertex_panel)
+        mesh = GarmentMesh(
+            X=X, tris=tris, x0=x0, tri_panel=old.tri_panel, panel_names=old.panel_names,
+            seam_emitters=old.seam_emitters, seam_edges=old.seam_edges, seam_weights=old.seam_weights,
+            pinned=old.pinned, level=level, generation=generation,
+        )
+        changed_topology = not np.array_equal(tris, old.tris)
+        st.mesh = mesh
+        st.result.mesh = mesh
+        # rest shape changed either way: a new mesh generation (vertex identity is kept)
+        st.mesh_generation = self._next_mesh_gen()
+        return MeshUpdate(level, mesh, st.mesh_generation, "flipped" if changed_topology else "followed")
+
+    def note_drape(self, level: str, mesh_generation: int, x: np.ndarray) -> None:
+        """Remember the latest 3D state of a level's current mesh (for transfer)."""
+        with self._lock:
+            st = self.levels.get(level)
+            if st is not None and st.mesh_generation == mesh_generation and x.shape == st.mesh.x0.shape:
+                st.last_x = np.array(x, dtype=np.float64)
+
+    def psi_for(self, element: str) -> dict[str, np.ndarray]:
+        """Ψ (n, 2, 2) per level for a press on ``element`` of the current design."""
+        with self._lock:
+            if self.design is None:
+                raise RuntimeError("no design yet: publish a pattern before editing")
+            jac = edit_jacobian(self.design, element)
+            return {level: psi(self._coords(st), jac) for level, st in self.levels.items()}
+
+    def warm_coordinates(self) -> None:
+        """Precompute PMVC coordinates (idle time), so the next press is fast."""
+        for st in list(self.levels.values()):
+            with self._lock:
+                self._coords(st)
+

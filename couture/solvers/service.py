@@ -1,0 +1,175 @@
+"""The solver node's state machine, free of bus code (nodes/solver adapts it).
+
+It holds the design's fabric and scene, the meshes of each level and a cloth
+model per level (rebuilt only when topology changes; a followed mesh only
+resets rest positions), picks warm starts, and runs the cascadic
+coarse -> fine refinement of SC §7.1 with progress and abort callbacks.
+
+Warm start, in order of preference, for a level's new mesh:
+1. the sensitivity prediction made for it (release of the last drag),
+2. this solver's previous state on the same vertices (a mesh that followed
+   a pattern edit keeps its vertices, SC §6),
+3. for the fine level: the new coarse equilibrium prolongated (cascadic),
+4. the mesh's own x0 (initial placement, or state the remesher transferred).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from couture.cloth.model import ClothModel, Scene
+from couture.mesh import GarmentMesh
+from couture.solvers import get_solver
+from couture.solvers.base import SolveResult
+from schemas.design import Design
+
+log = logging.getLogger(__name__)
+
+
+def scene_from_design(design: Design) -> Scene:
+    """The terms a design's scene needs (absent terms are never built)."""
+    flags = design.scene
+    body = "mannequin" if flags.body else None
+    return Scene(body=body, gravity=flags.gravity, seams=flags.seams,
+                 friction=bool(flags.friction and flags.body))
+
+
+def same_vertices(a: GarmentMesh, b: GarmentMesh) -> bool:
+    """Whether b is a followed/flipped version of a (vertex identity kept)."""
+    return (
+        a.n_vertices == b.n_vertices
+        and a.panel_names == b.panel_names
+        and np.array_equal(a.seam_emitters, b.seam_emitters)
+        and np.array_equal(a.seam_edges, b.seam_edges)
+    )
+
+
+@dataclass
+class LevelModel:
+    mesh: GarmentMesh
+    mesh_generation: int
+    model: ClothModel
+    x: np.ndarray | None = None
+    """latest state on this mesh [m], (n, 3)"""
+    converged: bool = False
+
+
+@dataclass
+class LevelRun:
+    level: str
+    mesh_generation: int
+    result: SolveResult
+    warm_start: str
+
+
+@dataclass
+class SolveService:
+    method: str = "kinetic"
+    tol: dict[str, float] = field(default_factory=lambda: {"coarse": 1e-3, "fine": 1e-4})
+    max_seconds: dict[str, float] = field(default_factory=lambda: {"coarse": 30.0, "fine": 120.0})
+    design: Design | None = None
+    levels: dict[str, LevelModel] = field(default_factory=dict)
+    predictions: dict[str, tuple[int, np.ndarray]] = field(default_factory=dict)
+    """level -> (mesh_generation the prediction was made on, x)"""
+    prolongation: tuple[np.ndarray, np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        self.solver = get_solver(self.method)
+
+    # -- inputs
+    def set_design(self, design: Design) -> bool:
+        """Returns True when fabric or scene changed (models must be rebuilt)."""
+        changed = self.design is None or design.fabric != self.design.fabric or design.scene != self.design.scene
+        self.design = design
+        if changed:
+            for lm in self.levels.values():
+                lm.model = ClothModel(lm.mesh, design.fabric, scene_from_design(design))
+                lm.converged = False
+        return changed
+
+    def set_mesh(self, level: str, mesh: GarmentMesh, mesh_generation: int,
+                 prolongation: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        if self.design is None:
+            raise RuntimeError("no design yet (pattern message) to take fabric and scene from")
+        old = self.levels.get(level)
+        if old is not None and old.mesh_generation == mesh_generation:
+            return
+        x_prev = None
+        if old is not None and same_vertices(old.mesh, mesh):
+            x_prev = old.x
+            if np.array_equal(old.mesh.tris, mesh.tris):
+                old.model.set_rest_positions(mesh.X)
+                model = old.model
+            else:
+                model = ClothModel(mesh, self.design.fabric, scene_from_design(self.design))
+        else:
+            model = ClothModel(mesh, self.design.fabric, scene_from_design(self.design))
+        self.levels[level] = LevelModel(mesh=mesh, mesh_generation=mesh_generation, model=model, x=x_prev)
+        if level == "fine" and prolongation is not None:
+            self.prolongation = prolongation
+
+    def set_prediction(self, level: str, mesh_generation: int, x: np.ndarray) -> None:
+        self.predictions[level] = (mesh_generation, np.asarray(x, dtype=np.float64))
+
+    def ready(self) -> bool:
+        return self.design is not None and "coarse" in self.levels and "fine" in self.levels and (
+            self.levels["coarse"].mesh.generation == self.levels["fine"].mesh.generation)
+
+    # -- work
+    def _warm(self, level: str, coarse_x: np.ndarray | None) -> tuple[np.ndarray, str]:
+        lm = self.levels[level]
+        pred = self.predictions.get(level)
+        if pred is not None and pred[1].shape == lm.mesh.x0.shape and lm.x is not None:
+            return pred[1], "prediction"
+        if lm.x is not None:
+            return lm.x, "previous"
+        if level == "fine" and coarse_x is not None and self.prolongation is not None:
+            parent, bary = self.prolongation
+            ct = self.levels["coarse"].mesh.tris[parent]
+            return np.einsum("nk,nkd->nd", bary, coarse_x[ct]), "prolongated"
+        return lm.mesh.x0, "placement"
+
+    def run(
+        self,
+        *,
+        levels: tuple[str, ...] = ("coarse", "fine"),
+        should_abort: Callable[[], bool] = lambda: False,
+        on_progress: Callable[[str, int, np.ndarray, float], None] | None = None,
+        on_level: Callable[[LevelRun], None] | None = None,
+        progress_period_s: float = 0.5,
+    ) -> list[LevelRun]:
+        """Cascadic refinement: each level from its warm start to its tolerance."""
+        runs: list[LevelRun] = []
+        coarse_x = None
+        for level in levels:
+            lm = self.levels[level]
+            x0, how = self._warm(level, coarse_x)
+            last = [time.monotonic()]
+
+            def cb(it: int, x: np.ndarray, res: float, level=level) -> bool:
+                if should_abort():
+                    return True
+                now = time.monotonic()
+                if on_progress is not None and now - last[0] >= progress_period_s:
+                    last[0] = now
+                    on_progress(level, it, x, res)
+                return False
+
+            result = self.solver.solve(lm.model, x0, tol=self.tol[level],
+                                       max_seconds=self.max_seconds[level], callback=cb)
+            lm.x = result.x
+            lm.converged = result.converged
+            self.predictions.pop(level, None)
+            run = LevelRun(level, lm.mesh_generation, result, how)
+            runs.append(run)
+            if on_level is not None:
+                on_level(run)
+            if should_abort():
+                break
+            coarse_x = result.x if level == "coarse" else coarse_x
+        return runs
