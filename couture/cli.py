@@ -1,4 +1,4 @@
-"""``couture`` command line: up, record, replay, compare, recover, drape, bench."""
+"""``couture`` command line: up, record, replay, compare, recover, export-foxglove, drape, bench."""
 
 from __future__ import annotations
 
@@ -39,6 +39,9 @@ def _parser() -> argparse.ArgumentParser:
     rp.add_argument("--loop", action="store_true")
     rp.add_argument("--wait-nodes", nargs="*", default=[], help="node names that must be live before sending")
     rp.add_argument("--wait-timeout", type=float, default=10.0, help="[s]")
+    rp.add_argument("--lockstep", action="store_true",
+                    help="after each pattern, wait for its final drape/fine before sending on (deterministic regression runs)")
+    rp.add_argument("--lockstep-timeout", type=float, default=300.0, help="[s] per pattern in --lockstep mode")
     add_bus_args(rp)
 
     cp = sub.add_parser("compare", help="compare outputs of two recordings within tolerances")
@@ -53,12 +56,21 @@ def _parser() -> argparse.ArgumentParser:
     rc.add_argument("src")
     rc.add_argument("dst")
 
+    fx = sub.add_parser("export-foxglove", help="copy a recording and add Foxglove-viewable channels (drape, body, pattern, log)")
+    fx.add_argument("src", help="recording (.mcap)")
+    fx.add_argument("dst", help="output .mcap: every original message plus /foxglove/* protobuf channels")
+    fx.add_argument("--strain-max", type=float, default=0.10, help="top of the fixed strain colour range (Green strain)")
+    fx.add_argument("--no-body", action="store_true", help="leave out the mannequin")
+
     dp = sub.add_parser("drape", help="drape a pattern file: start (or join) the nodes, write OBJ + pattern")
     dp.add_argument("pattern", help="pattern JSON (couture/design/v1)")
     dp.add_argument("--out", required=True, help="output directory")
     dp.add_argument("--timeout", type=float, default=120.0, help="[s] to wait for drape/fine")
     dp.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet"])
     add_bus_args(dp)
+
+    gp = sub.add_parser("golden", help="golden recordings: make or check recordings/<case>.mcap", add_help=False)
+    gp.add_argument("rest", nargs=argparse.REMAINDER)
 
     bp = sub.add_parser("bench", help="benchmarks")
     bp.add_argument("which", choices=BENCHES)
@@ -95,12 +107,18 @@ def _dispatch(args: argparse.Namespace) -> int:
         record(config_from_args(args))
         return 0
 
+    if args.cmd == "golden":
+        from couture.recording.golden import main as golden
+
+        return golden(args.rest)
+
     if args.cmd == "replay":
         from couture.recording.replay import ReplayConfig
         from couture.recording.replay import main as replay
 
         replay(ReplayConfig(path=args.path, bus=bus_config_from_args(args), topics=args.topics, rate=args.rate,
-                            loop=args.loop, wait_nodes=args.wait_nodes, wait_timeout_s=args.wait_timeout))
+                            loop=args.loop, wait_nodes=args.wait_nodes, wait_timeout_s=args.wait_timeout,
+                            lockstep=args.lockstep, lockstep_timeout_s=args.lockstep_timeout))
         return 0
 
     if args.cmd == "compare":
@@ -117,6 +135,13 @@ def _dispatch(args: argparse.Namespace) -> int:
 
         n = recover(args.src, args.dst)
         print(f"recovered {n} messages into {args.dst}")
+        return 0
+
+    if args.cmd == "export-foxglove":
+        from couture.recording.foxglove import MANNEQUIN_OBJ, export_foxglove
+
+        st = export_foxglove(args.src, args.dst, strain_max=args.strain_max, body=None if args.no_body else MANNEQUIN_OBJ)
+        print(f"{args.dst}: {st.text()}")
         return 0
 
     if args.cmd == "drape":
@@ -138,7 +163,9 @@ def _dispatch(args: argparse.Namespace) -> int:
 def drape(pattern: str, out: str, *, bus, timeout: float = 120.0, solver: str = "kinetic") -> int:
     """Drape a pattern file: join the bus given by ``bus.connect`` or start the
     nodes (no UI), publish the pattern, wait for drape/fine, write
-    ``drape.obj`` and ``pattern.json`` into ``out``."""
+    ``drape.obj`` (pattern as texture coordinates), ``drape.json`` (solver,
+    residual), ``pattern.json`` and the cuttable pattern as ``pattern.dxf``
+    (AAMA-style), ``pattern.svg`` and ``pattern.pdf`` (true scale) into ``out``."""
     from contextlib import ExitStack
 
     from couture import supervisor
@@ -158,7 +185,7 @@ def drape(pattern: str, out: str, *, bus, timeout: float = 120.0, solver: str = 
             client.wait_nodes(["remesher", f"solver-{solver}"], timeout=min(30.0, timeout))
         gen = client.publish_pattern(design, name=Path(pattern).stem)
         print(f"[drape] published {pattern} as generation {gen}; waiting for drape/fine...", file=sys.stderr)
-        d = client.wait_drape("fine", generation=gen, timeout=timeout)
+        d = client.wait_drape("fine", generation=gen, timeout=timeout, final=True)
         mesh = client.latest_mesh("fine")
         if mesh is None or mesh.generation != d.generation or mesh.X.shape[0] != d.x.shape[0]:
             raise RuntimeError(f"drape/fine for generation {d.generation} arrived but no matching mesh/fine "
@@ -166,6 +193,13 @@ def drape(pattern: str, out: str, *, bus, timeout: float = 120.0, solver: str = 
         out_dir.mkdir(parents=True, exist_ok=True)
         write_obj(out_dir / "drape.obj", d.x.numpy(), mesh.tris.numpy(), mesh.X.numpy())
         shutil.copyfile(pattern, out_dir / "pattern.json")
+        from couture.pattern import draft
+        from couture.pattern.io import export_dxf, export_pdf, export_svg
+
+        drafted = draft(design)
+        export_dxf(drafted, out_dir / "pattern.dxf")
+        export_svg(drafted, out_dir / "pattern.svg")
+        export_pdf(drafted, out_dir / "pattern.pdf")
         (out_dir / "drape.json").write_text(json.dumps({
             "generation": d.generation, "solver": d.solver, "method": d.method, "residual": d.residual,
             "iterations": d.iterations, "converged": d.converged, "diagnosis": d.diagnosis, "wall_time_s": d.wall_time_s,

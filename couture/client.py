@@ -131,7 +131,7 @@ class Client:
         return msg
 
     def wait_drape(self, kind: str = "fine", generation: int | None = None, timeout: float = 60.0,
-                   *, converged: bool | None = None) -> DrapeMsg:
+                   *, converged: bool | None = None, final: bool | None = None) -> DrapeMsg:
         """The newest drape of ``kind`` ('fine', 'coarse', 'predicted') with
         generation >= ``generation`` (any if None) that arrives or has arrived
         since the client opened. Raises TimeoutError naming what was missing."""
@@ -141,7 +141,9 @@ class Client:
 
         def find() -> DrapeMsg | None:
             for m in reversed(self._drapes[kind]):
-                if (generation is None or m.generation >= generation) and (converged is None or m.converged == converged):
+                if ((generation is None or m.generation >= generation)
+                        and (converged is None or m.converged == converged)
+                        and (final is None or m.final == final)):
                     return m
             return None
 

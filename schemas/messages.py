@@ -254,6 +254,9 @@ class DrapeMsg(Message, kw_only=True):
     """cheap error estimate of a prediction (its relative force residual)"""
     request_id: str = ""
     """solve request this drape answers, '' for bus-driven solves"""
+    final: bool = True
+    """False for progress snapshots published while a solve runs; True for a
+    level's result (converged or stopped with a diagnosis) and for predictions"""
 
 
 class StatusMsg(Message, kw_only=True):

@@ -18,3 +18,16 @@ node (``couture.cloth.model.ClothModel``):
 - ``model.dforces_dX(x, dX) -> (n, 3)``: directional derivative of the force
   with respect to the rest positions X along dX (n, 2), for sensitivity.
 """
+
+from couture.cloth.model import (  # noqa: E402
+    BEND_CONSTANT,
+    GRAVITY,
+    Body,
+    ClothModel,
+    Scene,
+    lame_parameters,
+)
+
+from schemas.design import Fabric  # noqa: E402  (re-exported: the material a ClothModel reads)
+
+__all__ = ["BEND_CONSTANT", "GRAVITY", "Body", "ClothModel", "Fabric", "Scene", "lame_parameters"]

@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import logging
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 
 from couture.bus import BusConfig, StopFlag, open_session
 from couture.recording.mcapio import read_session
-from schemas.messages import Message, type_for_topic
+from schemas.messages import DrapeMsg, Message, decode, type_for_topic
 
 log = logging.getLogger("couture.replay")
 
@@ -38,6 +39,12 @@ class ReplayConfig:
     """fail (instead of warn) when nobody subscribes to a replayed key in time"""
     linger_s: float = 0.2
     """keep the session open this long after the last message so it drains"""
+    lockstep: bool = False
+    """after each pattern message, wait for the final drape/fine of its
+    generation before sending anything else: the outputs then do not depend on
+    how fast the machine is (no solve is cut short by the next input)"""
+    lockstep_timeout_s: float = 300.0
+    """[s] to wait for each drape/fine in lockstep mode"""
 
 
 def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
@@ -64,6 +71,26 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
                 if config.require_subscribers:
                     raise TimeoutError(text)
                 log.warning(text)
+        done_gen = [-1]
+        cv = threading.Condition()
+        if config.lockstep:
+            def on_drape(msg: DrapeMsg) -> None:
+                if msg.final:
+                    with cv:
+                        done_gen[0] = max(done_gen[0], msg.generation)
+                        cv.notify_all()
+            bus.subscribe("drape/fine", on_drape, DrapeMsg)
+
+        def wait_outputs(generation: int) -> None:
+            deadline = time.monotonic() + config.lockstep_timeout_s
+            with cv:
+                while done_gen[0] < generation and not stop.is_set():
+                    left = deadline - time.monotonic()
+                    if left <= 0:
+                        raise TimeoutError(f"replay --lockstep: no final drape/fine for generation {generation} "
+                                           f"within {config.lockstep_timeout_s:g} s")
+                    cv.wait(min(left, 0.1))
+
         while True:
             t_rec0 = msgs[0].log_time
             t_wall0 = time.monotonic()
@@ -77,6 +104,8 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
                         stop.wait(delay)
                 pubs[m.topic].put_raw(m.data)
                 sent += 1
+                if config.lockstep and m.topic == "pattern":
+                    wait_outputs(decode(m.data).generation)
             if not config.loop or stop.is_set():
                 break
         time.sleep(config.linger_s)

@@ -1,0 +1,39 @@
+"""Swappable equilibrium solvers (issue 3): one signature, see :mod:`couture.solvers.base`.
+
+    from couture.solvers import get_solver
+    result = get_solver("kinetic").solve(model, x0, tol=1e-4)
+
+- ``kinetic``: kinetic damping on Baraff-Witkin semi-implicit steps, IC(0)-PCG (SC §7).
+- ``newton``: Newton + Armijo line search, sparse direct factorization (accuracy reference).
+- ``verlet``: Meng 2010 style mass-spring with Stoermer-Verlet (speed end; its own spring model).
+
+Cascadic coarse-to-fine refinement: :func:`couture.solvers.cascadic.solve_cascadic`.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from .base import ProgressCallback, SolveResult, Solver
+from .kinetic import KineticSolver
+from .newton import NewtonSolver
+from .verlet import VerletSolver
+
+SOLVERS: dict[str, Callable[..., Solver]] = {
+    "kinetic": KineticSolver,
+    "newton": NewtonSolver,
+    "verlet": VerletSolver,
+}
+
+
+def get_solver(name: str, **options) -> Solver:
+    """A new solver by registry name; ``options`` go to its constructor."""
+    try:
+        factory = SOLVERS[name]
+    except KeyError:
+        raise ValueError(f"unknown solver {name!r}; choose from {sorted(SOLVERS)}") from None
+    return factory(**options)
+
+
+__all__ = ["SOLVERS", "get_solver", "SolveResult", "Solver", "ProgressCallback",
+           "KineticSolver", "NewtonSolver", "VerletSolver"]

@@ -1,0 +1,172 @@
+"""Bodies the cloth rests on, as signed distance fields (positive outside).
+
+Every body offers ``phi_grad(points (n, 3)) -> (phi (n,) [m], grad (n, 3))``.
+
+- :class:`SphereBody`, :class:`PlaneBody`: closed-form SDFs for tests and the
+  SC Fig. 5 sphere scene.
+- :class:`GridSDFBody`: a regular-grid SDF, trilinearly interpolated (grad is
+  the exact gradient of the interpolant). :func:`load_mannequin_sdf` builds
+  it once for the embedded mannequin (1 cm grid over its bounding box plus a
+  margin, exact point-triangle distances, sign from angle-weighted
+  pseudonormals) and caches it as ``.npz`` under ``$COUTURE_CACHE`` or
+  ``~/.cache/couture``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from couture.cloth import kernels as K
+
+MANNEQUIN_OBJ = Path(__file__).resolve().parent.parent / "assets" / "mannequin" / "body_a_pose.obj"
+
+
+@dataclass
+class SphereBody:
+    center: np.ndarray
+    """[m], shape (3,)"""
+    radius: float
+    """[m]"""
+
+    def phi_grad(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        d = np.asarray(points, dtype=np.float64) - np.asarray(self.center, dtype=np.float64)
+        r = np.linalg.norm(d, axis=1)
+        safe = np.where(r > 0, r, 1.0)
+        grad = d / safe[:, None]
+        grad[r == 0] = (0.0, 1.0, 0.0)
+        return r - self.radius, grad
+
+
+@dataclass
+class PlaneBody:
+    """Half-space {p : n.(p - point) < 0} (a floor or a table top)."""
+
+    point: np.ndarray
+    """[m], shape (3,)"""
+    normal: np.ndarray
+    """outward unit normal, shape (3,)"""
+
+    def phi_grad(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = np.asarray(self.normal, dtype=np.float64)
+        n = n / np.linalg.norm(n)
+        p = np.asarray(points, dtype=np.float64)
+        return (p - np.asarray(self.point, dtype=np.float64)) @ n, np.broadcast_to(n, p.shape).copy()
+
+
+@dataclass
+class GridSDFBody:
+    origin: np.ndarray
+    """position of grid node (0, 0, 0) [m], shape (3,)"""
+    spacing: float
+    """[m]"""
+    values: np.ndarray
+    """signed distance at the nodes [m], shape (nx, ny, nz), float64"""
+
+    def phi_grad(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p = np.ascontiguousarray(points, dtype=np.float64)
+        phi = np.empty(len(p))
+        grad = np.empty((len(p), 3))
+        K.trilinear_phi_grad(p, np.asarray(self.origin, np.float64), float(self.spacing), self.values, phi, grad)
+        return phi, grad
+
+
+class TriangleMeshDistance:
+    """Exact signed distance to a closed, outward-oriented triangle mesh
+    (candidate faces from a k-d tree of face centroids)."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, k: int = 24):
+        from scipy.spatial import cKDTree
+
+        V = np.ascontiguousarray(vertices, dtype=np.float64)
+        F = np.ascontiguousarray(faces, dtype=np.int64)
+        self.V, self.F, self.k = V, F, min(k, len(F))
+        e1 = V[F[:, 1]] - V[F[:, 0]]
+        e2 = V[F[:, 2]] - V[F[:, 0]]
+        fn = np.cross(e1, e2)
+        fn /= np.linalg.norm(fn, axis=1)[:, None]
+        self.face_n = fn
+        # edge pseudonormal: sum of the normals of the two faces at the edge
+        a = F.reshape(-1)
+        b = F[:, [1, 2, 0]].reshape(-1)
+        key = np.minimum(a, b) * len(V) + np.maximum(a, b)
+        uniq, inv = np.unique(key, return_inverse=True)
+        acc = np.zeros((len(uniq), 3))
+        np.add.at(acc, inv, np.repeat(fn, 3, axis=0))
+        self.edge_n = acc[inv].reshape(len(F), 3, 3)
+        # vertex pseudonormal: angle-weighted face normals
+        vn = np.zeros_like(V)
+        for c in range(3):
+            p0 = V[F[:, c]]
+            u = V[F[:, (c + 1) % 3]] - p0
+            w = V[F[:, (c + 2) % 3]] - p0
+            cosang = np.einsum("ij,ij->i", u, w) / (np.linalg.norm(u, axis=1) * np.linalg.norm(w, axis=1))
+            ang = np.arccos(np.clip(cosang, -1.0, 1.0))
+            np.add.at(vn, F[:, c], fn * ang[:, None])
+        self.vert_n = vn
+        self.tree = cKDTree(V[F].mean(axis=1))
+
+    def __call__(self, points: np.ndarray, chunk: int = 100_000, progress: str | None = None) -> np.ndarray:
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        out = np.empty(len(points))
+        t0 = time.perf_counter()
+        for s in range(0, len(points), chunk):
+            p = points[s:s + chunk]
+            _, cand = self.tree.query(p, k=self.k)
+            cand = np.ascontiguousarray(cand.reshape(len(p), -1), dtype=np.int64)
+            K.signed_distance_candidates(p, cand, self.V, self.F, self.face_n, self.edge_n, self.vert_n, out[s:s + chunk])
+            if progress:
+                done = min(s + chunk, len(points))
+                print(f"\r{progress}: {done}/{len(points)} points, {time.perf_counter() - t0:.1f} s",
+                      end="", file=sys.stderr, flush=True)
+        if progress:
+            print(file=sys.stderr)
+        return out
+
+
+def build_grid_sdf(vertices, faces, spacing: float = 0.01, margin: float = 0.05,
+                   progress: str | None = None) -> GridSDFBody:
+    """Grid SDF over the mesh's bounding box grown by ``margin`` [m]."""
+    V = np.asarray(vertices, dtype=np.float64)
+    lo = V.min(axis=0) - margin
+    hi = V.max(axis=0) + margin
+    shape = np.ceil((hi - lo) / spacing).astype(int) + 1
+    axes = [lo[d] + spacing * np.arange(shape[d]) for d in range(3)]
+    P = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    dist = TriangleMeshDistance(V, faces)
+    values = dist(P, progress=progress).reshape(tuple(shape))
+    return GridSDFBody(origin=lo, spacing=float(spacing), values=values)
+
+
+def load_mannequin_mesh():
+    """(vertices (n, 3), faces (m, 3)) of the embedded A-pose mannequin [m], y up."""
+    import trimesh
+
+    mesh = trimesh.load(str(MANNEQUIN_OBJ), force="mesh", process=True)
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def cache_dir() -> Path:
+    return Path(os.environ.get("COUTURE_CACHE", Path.home() / ".cache" / "couture"))
+
+
+def load_mannequin_sdf(spacing: float = 0.01, margin: float = 0.05, verbose: bool = True) -> GridSDFBody:
+    """The mannequin's grid SDF, from the cache or built (and cached) now."""
+    digest = hashlib.sha1(MANNEQUIN_OBJ.read_bytes()).hexdigest()[:12]
+    path = cache_dir() / f"mannequin_sdf_{digest}_{spacing:g}_{margin:g}_v1.npz"
+    if path.exists():
+        with np.load(path) as z:
+            return GridSDFBody(origin=z["origin"], spacing=float(z["spacing"]), values=np.ascontiguousarray(z["values"]))
+    V, F = load_mannequin_mesh()
+    body = build_grid_sdf(V, F, spacing, margin, progress="mannequin SDF" if verbose else None)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".tmp{os.getpid()}.npz")
+    np.savez_compressed(tmp, origin=body.origin, spacing=body.spacing, values=body.values)
+    os.replace(tmp, path)
+    return body

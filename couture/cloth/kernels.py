@@ -1,0 +1,563 @@
+"""Numba kernels of the cloth model: free functions with explicit input and
+output arrays (newton's ``kernels.py`` habit). The orchestration lives in
+``couture.cloth.model``.
+
+Conventions
+-----------
+- ``x`` (n, 3) world positions [m]; ``X`` (n, 2) rest (pattern) positions [m];
+  ``tris`` (m, 3) int32, counter-clockwise in X.
+- Stiffness data is written straight into the ``data`` array of the model's
+  3n x 3n CSR matrix. The matrix has a 3x3 block structure; a block (i, j) is
+  addressed by its slot ``s`` in the scalar n x n CSR pattern, and entry
+  (3i+a, 3j+b) lives at ``blk_base[s] + a * blk_stride[s] + b``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# --------------------------------------------------------------------------
+# StVK constant-strain triangle (membrane)
+# --------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def membrane_rest(X, tris, Dminv, area):
+    """Rest shape of every triangle: Dminv (m, 2, 2) = inverse of [X1-X0, X2-X0]
+    (columns), area (m,) [m²]."""
+    for t in range(tris.shape[0]):
+        i0, i1, i2 = tris[t, 0], tris[t, 1], tris[t, 2]
+        a00 = X[i1, 0] - X[i0, 0]
+        a10 = X[i1, 1] - X[i0, 1]
+        a01 = X[i2, 0] - X[i0, 0]
+        a11 = X[i2, 1] - X[i0, 1]
+        det = a00 * a11 - a01 * a10
+        area[t] = 0.5 * abs(det)
+        inv = 1.0 / det
+        Dminv[t, 0, 0] = a11 * inv
+        Dminv[t, 0, 1] = -a01 * inv
+        Dminv[t, 1, 0] = -a10 * inv
+        Dminv[t, 1, 1] = a00 * inv
+
+
+@njit(cache=True, inline="always")
+def _shape_vectors(Dminv, t, b):
+    # F = sum_a x_a b_a^T with b_1, b_2 the rows of Dminv and b_0 = -(b_1 + b_2)
+    b[1, 0] = Dminv[t, 0, 0]
+    b[1, 1] = Dminv[t, 0, 1]
+    b[2, 0] = Dminv[t, 1, 0]
+    b[2, 1] = Dminv[t, 1, 1]
+    b[0, 0] = -b[1, 0] - b[2, 0]
+    b[0, 1] = -b[1, 1] - b[2, 1]
+
+
+@njit(cache=True, inline="always")
+def _deformation(x, tris, t, b, F):
+    F[:, :] = 0.0
+    for a in range(3):
+        v = tris[t, a]
+        for i in range(3):
+            for k in range(2):
+                F[i, k] += x[v, i] * b[a, k]
+
+
+@njit(cache=True, inline="always")
+def _stress(F, mu, lam, E, S):
+    """Green strain E and 2nd Piola-Kirchhoff stress S (2x2); returns the
+    energy density psi [J/m²]."""
+    for k in range(2):
+        for l in range(2):
+            c = 0.0
+            for i in range(3):
+                c += F[i, k] * F[i, l]
+            E[k, l] = 0.5 * (c - (1.0 if k == l else 0.0))
+    tr = E[0, 0] + E[1, 1]
+    for k in range(2):
+        for l in range(2):
+            S[k, l] = 2.0 * mu * E[k, l] + (lam * tr if k == l else 0.0)
+    return mu * (E[0, 0] ** 2 + 2.0 * E[0, 1] ** 2 + E[1, 1] ** 2) + 0.5 * lam * tr * tr
+
+
+@njit(cache=True, inline="always")
+def _clamp_psd_2x2(S, Sp):
+    """Sp = positive part of the symmetric 2x2 S (negative eigenvalues set to 0)."""
+    a, c, d = S[0, 0], S[0, 1], S[1, 1]
+    m = 0.5 * (a + d)
+    r = np.sqrt(0.25 * (a - d) ** 2 + c * c)
+    l1 = m + r
+    l2 = m - r
+    if l2 >= 0.0:
+        Sp[0, 0], Sp[0, 1], Sp[1, 0], Sp[1, 1] = a, c, c, d
+        return
+    if l1 <= 0.0:
+        Sp[:, :] = 0.0
+        return
+    # eigenvector of l1
+    if c != 0.0:
+        v0, v1 = l1 - d, c
+    elif a >= d:
+        v0, v1 = 1.0, 0.0
+    else:
+        v0, v1 = 0.0, 1.0
+    nv = np.sqrt(v0 * v0 + v1 * v1)
+    v0 /= nv
+    v1 /= nv
+    Sp[0, 0] = l1 * v0 * v0
+    Sp[0, 1] = l1 * v0 * v1
+    Sp[1, 0] = l1 * v0 * v1
+    Sp[1, 1] = l1 * v1 * v1
+
+
+@njit(cache=True)
+def membrane_energy(x, tris, Dminv, area, mu, lam):
+    b = np.empty((3, 2))
+    F = np.empty((3, 2))
+    E = np.empty((2, 2))
+    S = np.empty((2, 2))
+    e = 0.0
+    for t in range(tris.shape[0]):
+        _shape_vectors(Dminv, t, b)
+        _deformation(x, tris, t, b, F)
+        e += area[t] * _stress(F, mu, lam, E, S)
+    return e
+
+
+@njit(cache=True)
+def membrane_forces(x, tris, Dminv, area, mu, lam, f):
+    """f (n, 3) += -dW/dx; returns the membrane energy W [J]."""
+    b = np.empty((3, 2))
+    F = np.empty((3, 2))
+    E = np.empty((2, 2))
+    S = np.empty((2, 2))
+    FS = np.empty((3, 2))
+    e = 0.0
+    for t in range(tris.shape[0]):
+        _shape_vectors(Dminv, t, b)
+        _deformation(x, tris, t, b, F)
+        A = area[t]
+        e += A * _stress(F, mu, lam, E, S)
+        for i in range(3):
+            for k in range(2):
+                FS[i, k] = F[i, 0] * S[0, k] + F[i, 1] * S[1, k]
+        for a in range(3):
+            v = tris[t, a]
+            for i in range(3):
+                f[v, i] -= A * (FS[i, 0] * b[a, 0] + FS[i, 1] * b[a, 1])
+    return e
+
+
+@njit(cache=True, inline="always")
+def _membrane_element_hessian(x, tris, Dminv, area, mu, lam, t, project, b, F, E, S, Sp, U, FFt, H):
+    """H (9, 9) = d²W_t/dx² of triangle t, vertex-major (3a+i).
+
+    H_ab = A [ (b_a^T S b_b) I + mu (b_a.b_b) F F^T + mu u_b u_a^T + lam u_a u_b^T ],
+    u_a = F b_a. The last three terms are J^T C J (C the plane-stress
+    elasticity tensor), PSD for every x; only the geometric term
+    (b_a^T S b_b) I can be indefinite, and only when S has a negative
+    eigenvalue (compression). With ``project`` S is replaced by its positive
+    part there, which makes H PSD and leaves it unchanged in tension.
+    """
+    _shape_vectors(Dminv, t, b)
+    _deformation(x, tris, t, b, F)
+    _stress(F, mu, lam, E, S)
+    if project:
+        _clamp_psd_2x2(S, Sp)
+    else:
+        Sp[:, :] = S
+    A = area[t]
+    for a in range(3):
+        for i in range(3):
+            U[a, i] = F[i, 0] * b[a, 0] + F[i, 1] * b[a, 1]
+    for i in range(3):
+        for j in range(3):
+            FFt[i, j] = F[i, 0] * F[j, 0] + F[i, 1] * F[j, 1]
+    for a in range(3):
+        for c in range(3):
+            g = 0.0
+            bb = b[a, 0] * b[c, 0] + b[a, 1] * b[c, 1]
+            for k in range(2):
+                for l in range(2):
+                    g += b[a, k] * Sp[k, l] * b[c, l]
+            for i in range(3):
+                for j in range(3):
+                    h = mu * bb * FFt[i, j] + mu * U[c, i] * U[a, j] + lam * U[a, i] * U[c, j]
+                    if i == j:
+                        h += g
+                    H[3 * a + i, 3 * c + j] = A * h
+
+
+@njit(cache=True)
+def membrane_element_hessians(x, tris, Dminv, area, mu, lam, project, out):
+    """out (m, 9, 9): every element Hessian (for tests and diagnostics)."""
+    b = np.empty((3, 2))
+    F = np.empty((3, 2))
+    E = np.empty((2, 2))
+    S = np.empty((2, 2))
+    Sp = np.empty((2, 2))
+    U = np.empty((3, 3))
+    FFt = np.empty((3, 3))
+    for t in range(tris.shape[0]):
+        _membrane_element_hessian(x, tris, Dminv, area, mu, lam, t, project, b, F, E, S, Sp, U, FFt, out[t])
+
+
+@njit(cache=True)
+def membrane_stiffness(x, tris, Dminv, area, mu, lam, project, tri_slots, blk_base, blk_stride, data):
+    """data += membrane Hessian (PSD-projected if ``project``);
+    tri_slots (m, 3, 3) scalar-CSR slot of block (tris[t,a], tris[t,c]).
+    Same algebra as ``_membrane_element_hessian``, written block by block
+    (H_ca = H_ac^T) straight into the CSR data."""
+    b = np.empty((3, 2))
+    F = np.empty((3, 2))
+    E = np.empty((2, 2))
+    S = np.empty((2, 2))
+    Sp = np.empty((2, 2))
+    U = np.empty((3, 3))
+    FFt = np.empty((3, 3))
+    blk = np.empty((3, 3))
+    for t in range(tris.shape[0]):
+        _shape_vectors(Dminv, t, b)
+        _deformation(x, tris, t, b, F)
+        _stress(F, mu, lam, E, S)
+        if project:
+            _clamp_psd_2x2(S, Sp)
+        else:
+            Sp[:, :] = S
+        A = area[t]
+        for a in range(3):
+            for i in range(3):
+                U[a, i] = F[i, 0] * b[a, 0] + F[i, 1] * b[a, 1]
+        for i in range(3):
+            for j in range(3):
+                FFt[i, j] = A * mu * (F[i, 0] * F[j, 0] + F[i, 1] * F[j, 1])
+        Amu = A * mu
+        Alam = A * lam
+        for a in range(3):
+            for c in range(a, 3):
+                bb = b[a, 0] * b[c, 0] + b[a, 1] * b[c, 1]
+                g = A * (b[a, 0] * (Sp[0, 0] * b[c, 0] + Sp[0, 1] * b[c, 1])
+                         + b[a, 1] * (Sp[1, 0] * b[c, 0] + Sp[1, 1] * b[c, 1]))
+                for i in range(3):
+                    for j in range(3):
+                        blk[i, j] = bb * FFt[i, j] + Amu * U[c, i] * U[a, j] + Alam * U[a, i] * U[c, j]
+                    blk[i, i] += g
+                s = tri_slots[t, a, c]
+                base = blk_base[s]
+                st = blk_stride[s]
+                for i in range(3):
+                    for j in range(3):
+                        data[base + i * st + j] += blk[i, j]
+                if c != a:
+                    s = tri_slots[t, c, a]
+                    base = blk_base[s]
+                    st = blk_stride[s]
+                    for i in range(3):
+                        for j in range(3):
+                            data[base + i * st + j] += blk[j, i]
+
+
+@njit(cache=True)
+def membrane_dforces_dX(x, X, dX, tris, Dminv, area, mu, lam, df):
+    """df (n, 3) += d/de f_membrane(x; X + e dX) at e = 0 (analytic).
+
+    f_a = -A F S b_a with A, b_a (hence F) functions of X:
+    dDm = [dX1-dX0, dX2-dX0], dDminv = -Dminv dDm Dminv, dA = A tr(Dminv dDm),
+    dF = Ds dDminv, dE = sym(F^T dF), dS = 2 mu dE + lam tr(dE) I.
+    """
+    b = np.empty((3, 2))
+    db = np.empty((3, 2))
+    F = np.empty((3, 2))
+    dF = np.empty((3, 2))
+    E = np.empty((2, 2))
+    S = np.empty((2, 2))
+    dE = np.empty((2, 2))
+    dS = np.empty((2, 2))
+    dDm = np.empty((2, 2))
+    dDi = np.empty((2, 2))
+    tmp = np.empty((2, 2))
+    for t in range(tris.shape[0]):
+        i0, i1, i2 = tris[t, 0], tris[t, 1], tris[t, 2]
+        for k in range(2):
+            dDm[k, 0] = dX[i1, k] - dX[i0, k]
+            dDm[k, 1] = dX[i2, k] - dX[i0, k]
+        # tmp = Dminv dDm ; dDi = -tmp Dminv
+        for k in range(2):
+            for l in range(2):
+                tmp[k, l] = Dminv[t, k, 0] * dDm[0, l] + Dminv[t, k, 1] * dDm[1, l]
+        for k in range(2):
+            for l in range(2):
+                dDi[k, l] = -(tmp[k, 0] * Dminv[t, 0, l] + tmp[k, 1] * Dminv[t, 1, l])
+        A = area[t]
+        dA = A * (tmp[0, 0] + tmp[1, 1])
+        _shape_vectors(Dminv, t, b)
+        db[1, 0], db[1, 1] = dDi[0, 0], dDi[0, 1]
+        db[2, 0], db[2, 1] = dDi[1, 0], dDi[1, 1]
+        db[0, 0], db[0, 1] = -db[1, 0] - db[2, 0], -db[1, 1] - db[2, 1]
+        _deformation(x, tris, t, b, F)
+        _deformation(x, tris, t, db, dF)
+        _stress(F, mu, lam, E, S)
+        for k in range(2):
+            for l in range(2):
+                c = 0.0
+                for i in range(3):
+                    c += F[i, k] * dF[i, l] + dF[i, k] * F[i, l]
+                dE[k, l] = 0.5 * c
+        trd = dE[0, 0] + dE[1, 1]
+        for k in range(2):
+            for l in range(2):
+                dS[k, l] = 2.0 * mu * dE[k, l] + (lam * trd if k == l else 0.0)
+        for a in range(3):
+            v = tris[t, a]
+            for i in range(3):
+                # d(A F S b_a) = dA F S b_a + A (dF S b_a + F dS b_a + F S db_a)
+                acc = 0.0
+                for k in range(2):
+                    Sb = S[k, 0] * b[a, 0] + S[k, 1] * b[a, 1]
+                    dSb = dS[k, 0] * b[a, 0] + dS[k, 1] * b[a, 1]
+                    Sdb = S[k, 0] * db[a, 0] + S[k, 1] * db[a, 1]
+                    acc += dA * F[i, k] * Sb + A * (dF[i, k] * Sb + F[i, k] * dSb + F[i, k] * Sdb)
+                df[v, i] -= acc
+
+
+# --------------------------------------------------------------------------
+# constant scalar (x I3) terms: bending, seams
+# --------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def scalar_to_block_diag(vals, blk_base, blk_stride, data):
+    """data += vals (scalar CSR data) expanded as vals[s] * I3 per block."""
+    for s in range(vals.shape[0]):
+        v = vals[s]
+        if v != 0.0:
+            base = blk_base[s]
+            st = blk_stride[s]
+            for i in range(3):
+                data[base + i * st + i] += v
+
+
+@njit(cache=True)
+def stencil_scatter(weights, coef, slots, vals):
+    """vals[slots[e, a, c]] += coef[e] * weights[e, a] * weights[e, c]:
+    the scalar matrix sum_e coef_e w_e w_e^T of stencils (bending, seams)."""
+    k = weights.shape[1]
+    for e in range(weights.shape[0]):
+        for a in range(k):
+            for c in range(k):
+                vals[slots[e, a, c]] += coef[e] * weights[e, a] * weights[e, c]
+
+
+# --------------------------------------------------------------------------
+# body contact and friction anchors (per vertex, 3x3 diagonal blocks)
+# --------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def contact_forces(phi, grad, offset, k_c, f):
+    """E = k_c/2 max(0, offset - phi)^2 per vertex; f += -dE/dx; returns E."""
+    e = 0.0
+    for v in range(phi.shape[0]):
+        pen = offset - phi[v]
+        if pen > 0.0:
+            e += 0.5 * k_c * pen * pen
+            for i in range(3):
+                f[v, i] += k_c * pen * grad[v, i]
+    return e
+
+
+@njit(cache=True)
+def contact_stiffness(phi, grad, offset, k_c, diag_slots, blk_base, blk_stride, data):
+    """Gauss-Newton Hessian k_c grad grad^T for vertices inside the offset (PSD;
+    it drops k_c pen Hess(phi), the body's curvature term)."""
+    for v in range(phi.shape[0]):
+        if offset - phi[v] > 0.0:
+            s = diag_slots[v]
+            base = blk_base[s]
+            st = blk_stride[s]
+            for i in range(3):
+                for j in range(3):
+                    data[base + i * st + j] += k_c * grad[v, i] * grad[v, j]
+
+
+@njit(cache=True)
+def anchor_forces(x, anchored, anchor, normal, k_t, f):
+    """Tangential anchor springs E = k_t/2 |P (x - a)|², P = I - n n^T with the
+    normal n frozen at the anchor; f += -dE/dx; returns E."""
+    e = 0.0
+    for v in range(x.shape[0]):
+        if anchored[v]:
+            d0 = x[v, 0] - anchor[v, 0]
+            d1 = x[v, 1] - anchor[v, 1]
+            d2 = x[v, 2] - anchor[v, 2]
+            dn = d0 * normal[v, 0] + d1 * normal[v, 1] + d2 * normal[v, 2]
+            t0 = d0 - dn * normal[v, 0]
+            t1 = d1 - dn * normal[v, 1]
+            t2 = d2 - dn * normal[v, 2]
+            e += 0.5 * k_t * (t0 * t0 + t1 * t1 + t2 * t2)
+            f[v, 0] -= k_t * t0
+            f[v, 1] -= k_t * t1
+            f[v, 2] -= k_t * t2
+    return e
+
+
+@njit(cache=True)
+def anchor_stiffness(anchored, normal, k_t, diag_slots, blk_base, blk_stride, data):
+    for v in range(anchored.shape[0]):
+        if anchored[v]:
+            s = diag_slots[v]
+            base = blk_base[s]
+            st = blk_stride[s]
+            for i in range(3):
+                for j in range(3):
+                    data[base + i * st + j] += k_t * ((1.0 if i == j else 0.0) - normal[v, i] * normal[v, j])
+
+
+# --------------------------------------------------------------------------
+# signed distance grid
+# --------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def trilinear_phi_grad(points, origin, spacing, values, phi, grad):
+    """Trilinear interpolation of a grid SDF ``values`` (nx, ny, nz) with
+    node (i, j, k) at origin + spacing * (i, j, k); grad is the exact
+    gradient of the interpolant. Points outside the grid are clamped to it
+    and get the distance to the grid box added (the grid has a margin, so
+    they are far from the body)."""
+    nx, ny, nz = values.shape
+    lim = (nx, ny, nz)
+    dirx = np.zeros(3)
+    idx = np.empty(3, np.int64)
+    fr = np.empty(3)
+    for p in range(points.shape[0]):
+        extra2 = 0.0
+        dirx[:] = 0.0
+        for d in range(3):
+            q = (points[p, d] - origin[d]) / spacing
+            hi = lim[d] - 1.0
+            if q < 0.0:
+                extra2 += (q * spacing) ** 2
+                dirx[d] = q * spacing
+                q = 0.0
+            elif q > hi:
+                extra2 += ((q - hi) * spacing) ** 2
+                dirx[d] = (q - hi) * spacing
+                q = hi
+            i = int(np.floor(q))
+            if i > lim[d] - 2:
+                i = lim[d] - 2
+            idx[d] = i
+            fr[d] = q - i
+        i, j, k = idx[0], idx[1], idx[2]
+        fx, fy, fz = fr[0], fr[1], fr[2]
+        c000 = values[i, j, k]
+        c100 = values[i + 1, j, k]
+        c010 = values[i, j + 1, k]
+        c110 = values[i + 1, j + 1, k]
+        c001 = values[i, j, k + 1]
+        c101 = values[i + 1, j, k + 1]
+        c011 = values[i, j + 1, k + 1]
+        c111 = values[i + 1, j + 1, k + 1]
+        c00 = c000 * (1 - fx) + c100 * fx
+        c10 = c010 * (1 - fx) + c110 * fx
+        c01 = c001 * (1 - fx) + c101 * fx
+        c11 = c011 * (1 - fx) + c111 * fx
+        c0 = c00 * (1 - fy) + c10 * fy
+        c1 = c01 * (1 - fy) + c11 * fy
+        val = c0 * (1 - fz) + c1 * fz
+        gz = (c1 - c0) / spacing
+        gy = ((c10 - c00) * (1 - fz) + (c11 - c01) * fz) / spacing
+        gx = (((c100 - c000) * (1 - fy) + (c110 - c010) * fy) * (1 - fz)
+              + ((c101 - c001) * (1 - fy) + (c111 - c011) * fy) * fz) / spacing
+        if extra2 > 0.0:
+            ex = np.sqrt(extra2)
+            phi[p] = val + ex
+            grad[p, 0] = dirx[0] / ex
+            grad[p, 1] = dirx[1] / ex
+            grad[p, 2] = dirx[2] / ex
+        else:
+            phi[p] = val
+            grad[p, 0] = gx
+            grad[p, 1] = gy
+            grad[p, 2] = gz
+
+
+@njit(cache=True, inline="always")
+def _closest_on_triangle(p, a, b, c, out):
+    """Ericson's closest point on triangle abc to p; returns the feature:
+    0 face, 1 edge ab, 2 edge bc, 3 edge ca, 4 vertex a, 5 vertex b, 6 vertex c."""
+    ab = b - a
+    ac = c - a
+    ap = p - a
+    d1 = ab @ ap
+    d2 = ac @ ap
+    if d1 <= 0.0 and d2 <= 0.0:
+        out[:] = a
+        return 4
+    bp = p - b
+    d3 = ab @ bp
+    d4 = ac @ bp
+    if d3 >= 0.0 and d4 <= d3:
+        out[:] = b
+        return 5
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        out[:] = a + v * ab
+        return 1
+    cp = p - c
+    d5 = ab @ cp
+    d6 = ac @ cp
+    if d6 >= 0.0 and d5 <= d6:
+        out[:] = c
+        return 6
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        out[:] = a + w * ac
+        return 3
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        out[:] = b + w * (c - b)
+        return 2
+    denom = 1.0 / (va + vb + vc)
+    v = vb * denom
+    w = vc * denom
+    out[:] = a + ab * v + ac * w
+    return 0
+
+
+@njit(cache=True)
+def signed_distance_candidates(points, cand, V, F, face_n, edge_n, vert_n, out):
+    """Exact signed distance of each point to a closed triangle mesh, searching
+    the candidate faces cand (p, k). Sign from the angle-weighted pseudonormal
+    of the closest feature (Baerentzen & Aanaes 2005): face normal, edge
+    normal (sum of the two face normals, edge_n (f, 3, 3) per face edge
+    ab, bc, ca) or angle-weighted vertex normal. Positive outside."""
+    q = np.empty(3)
+    for p in range(points.shape[0]):
+        best = 1e300
+        sgn = 1.0
+        pt = points[p]
+        for kk in range(cand.shape[1]):
+            f = cand[p, kk]
+            a = V[F[f, 0]]
+            b = V[F[f, 1]]
+            c = V[F[f, 2]]
+            feat = _closest_on_triangle(pt, a, b, c, q)
+            d0 = pt[0] - q[0]
+            d1 = pt[1] - q[1]
+            d2 = pt[2] - q[2]
+            dist2 = d0 * d0 + d1 * d1 + d2 * d2
+            if dist2 < best:
+                best = dist2
+                if feat == 0:
+                    nx, ny, nz = face_n[f, 0], face_n[f, 1], face_n[f, 2]
+                elif feat <= 3:
+                    nx, ny, nz = edge_n[f, feat - 1, 0], edge_n[f, feat - 1, 1], edge_n[f, feat - 1, 2]
+                else:
+                    vv = F[f, feat - 4]
+                    nx, ny, nz = vert_n[vv, 0], vert_n[vv, 1], vert_n[vv, 2]
+                sgn = 1.0 if d0 * nx + d1 * ny + d2 * nz >= 0.0 else -1.0
+        out[p] = sgn * np.sqrt(best)

@@ -1,0 +1,545 @@
+"""Cloth statics model (SC §5, §7): stabilized StVK membrane, isometric
+bending, lumped mass and gravity, seams, body contact, friction anchors.
+
+Total potential energy of a drape x (n, 3) for rest pattern X (n, 2):
+
+    E(x) = W_membrane + W_bending + W_gravity + W_seams + W_contact + W_friction
+
+``forces(x) = -dE/dx`` and ``stiffness(x) = d²E/dx²`` (membrane part made
+positive semi-definite in compression, contact part Gauss-Newton). Each term
+is built only when the scene needs it (``model.terms`` lists those built).
+
+Material (plane stress, thin sheet; ``Fabric.stretch_stiffness`` is E·h [N/m]):
+
+    mu = Eh / (2 (1 + nu)),   lam = Eh nu / (1 - nu²)        [N/m]
+
+membrane energy density psi = mu |G|² + lam/2 tr(G)² per unit rest area, G the
+Green strain ½(FᵀF - I) of the constant-strain triangle.
+
+Bending (Bergou et al. 2006, isometric bending model): per interior edge
+stencil (x0, x1 on the edge, x2, x3 opposite) a weight vector K (4,) that
+annihilates every affine map of the flat rest pattern (flat and rigidly
+moved sheets have zero bending energy), scaled so that K·x = |e| θ for a
+small hinge fold θ of one triangle: K_2 = |e|²/(2 A0) (= the sum of the
+cotangents of triangle 0's angles at the edge), likewise K_3, and K_0, K_1
+from the affine null conditions. Then
+
+    W_bending = (k_b / 2) · c · Σ_e 3 / (A0 + A1) · |K_e x|²,   c = 0.29.
+
+Why c = 0.29: for a smooth bend z = ½ Xᵀ κ X, an edge with in-plane
+tangent t and normal ν sees K·x = ½ Σ K_i (X_iᵀ κ X_i); on the equilateral
+lattice that is (|e|²/(2√3)) (3 κ_νν - κ_tt), and summing the three edge
+directions gives, per unit area, 3 [κ1² + κ2² - (2/3) κ1 κ2]: a Kirchhoff
+plate with effective Poisson ratio ν_b = -1/3 and, with c = 1, three times
+the cylinder energy (k_b/2) ∫ κ² dA (checked numerically: 3.01). The
+quality constrained-Delaunay meshes the remesher builds (``triangle``,
+min angle 30°) are not equilateral; on them c = 1 gives 3.39..3.46 times
+the continuum in the mesh interior (mean over bending directions, meshes of
+0.5k..5k vertices; ±4 % over directions), hence c = 1/3.45 ≈ 0.29 so that
+the continuum (k_b/2) ∫ κ² dA is matched on those meshes. Checked in
+tests on triangle-library meshes for several bending axes; right-triangle
+grids are anisotropic (3.0x along the axes, 4.5x at 45°) and never used
+for validation. The ν_b = -1/3 coupling matters only where curvature is
+not developable: in a linear small-deflection solve a narrow strip bends
+with EI = k_b W (1 - ν_b²) = (8/9) k_b W (tests/test_cloth_physics.py); at
+drape-scale deflections the membrane penalizes the Gaussian curvature that
+lateral bending creates, pushing the strip toward developable bending with
+EI = k_b W (not checked quantitatively here).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+import scipy.sparse as sp
+
+from couture.cloth import kernels as K
+from couture.mesh import GarmentMesh
+
+GRAVITY = 9.81
+"""[m/s²], along -y (y is up on the mannequin)"""
+
+BEND_CONSTANT = 0.29
+"""c in W_bending = (k_b/2) c Σ 3/(A0+A1) |K x|² (see module docstring)"""
+
+SEAM_STIFFNESS_PER_MU = 5000.0
+"""default seam spring stiffness in units of the membrane shear modulus mu (SC source)"""
+
+CONTACT_STIFFNESS_PER_MU = 1000.0
+"""default contact penalty stiffness in units of mu"""
+
+
+class Body(Protocol):
+    """A rigid body the cloth rests on, as a signed distance field (positive outside)."""
+
+    def phi_grad(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """points (n, 3) [m] -> (phi (n,) [m], grad (n, 3) dimensionless)."""
+        ...
+
+
+@dataclass
+class Scene:
+    """Which terms a model holds. Absent terms are never built."""
+
+    body: Body | str | None = None
+    """None, a Body, or 'mannequin' (the embedded body's SDF, loaded or built lazily)"""
+    gravity: bool = True
+    seams: bool = True
+    """model the mesh's seam springs (if it has any)"""
+    friction: bool = False
+    """friction anchors against the body (needs a body)"""
+    seam_stiffness: float | None = None
+    """[N/m] per seam spring; None: SEAM_STIFFNESS_PER_MU * mu"""
+    contact_stiffness: float | None = None
+    """[N/m] per vertex; None: CONTACT_STIFFNESS_PER_MU * mu"""
+    contact_offset: float = 0.01
+    """[m] cloth keeps this far from the body surface (SC: 1-1.5 cm)"""
+    friction_stiffness: float | None = None
+    """[N/m] tangential anchor springs; None: the contact stiffness"""
+    project_membrane: bool = True
+    """PSD projection of the membrane Hessian in compression"""
+
+
+def lame_parameters(stretch_stiffness: float, poisson_ratio: float) -> tuple[float, float]:
+    """Plane-stress Lamé parameters (mu, lam) [N/m] from E·h [N/m] and nu."""
+    nu = poisson_ratio
+    mu = stretch_stiffness / (2.0 * (1.0 + nu))
+    lam = stretch_stiffness * nu / (1.0 - nu * nu)
+    return mu, lam
+
+
+def bending_stencils(tris: np.ndarray) -> np.ndarray:
+    """(e, 4) int32 stencils (v0, v1, opp0, opp1) of the interior (two-triangle) edges.
+
+    opp0 lies in the triangle where the edge runs v0 -> v1 counter-clockwise."""
+    tris = np.asarray(tris)
+    m = len(tris)
+    a = tris.reshape(-1)
+    b = tris[:, [1, 2, 0]].reshape(-1)
+    o = tris[:, [2, 0, 1]].reshape(-1)
+    lo = np.minimum(a, b).astype(np.int64)
+    hi = np.maximum(a, b).astype(np.int64)
+    key = lo * (int(a.max()) + 1 if m else 1) + hi
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    same = np.nonzero(ks[1:] == ks[:-1])[0]
+    # drop non-manifold edges (3+ triangles): they are not hinges
+    if len(same):
+        cnt_ok = np.ones(len(same), bool)
+        cnt_ok &= ~np.isin(same - 1, same)
+        cnt_ok &= ~np.isin(same + 1, same)
+        same = same[cnt_ok]
+    h0 = order[same]
+    h1 = order[same + 1]
+    return np.column_stack([a[h0], b[h0], o[h0], o[h1]]).astype(np.int32)
+
+
+def bending_weights(X: np.ndarray, stencils: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """K (e, 4) and the per-stencil factor 3 / (A0 + A1) [1/m²] from rest positions X (n, 2)."""
+    x0, x1, x2, x3 = (X[stencils[:, i]] for i in range(4))
+    e = x1 - x0
+    le2 = np.einsum("ij,ij->i", e, e)
+    le = np.sqrt(le2)
+    t = e / le[:, None]
+
+    def cross(u, v):
+        return u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+
+    A0 = 0.5 * np.abs(cross(e, x2 - x0))
+    A1 = 0.5 * np.abs(cross(e, x3 - x0))
+    k2 = le2 / (2.0 * A0)
+    k3 = le2 / (2.0 * A1)
+    s2 = np.einsum("ij,ij->i", x2 - x0, t)
+    s3 = np.einsum("ij,ij->i", x3 - x0, t)
+    k1 = -(k2 * s2 + k3 * s3) / le
+    k0 = -(k1 + k2 + k3)
+    return np.column_stack([k0, k1, k2, k3]), 3.0 / (A0 + A1)
+
+
+@dataclass
+class _Pattern:
+    """Sparse 3n x 3n block-CSR pattern and the element -> data-slot maps."""
+
+    n: int
+    indptr: np.ndarray
+    indices: np.ndarray
+    blk_base: np.ndarray
+    blk_stride: np.ndarray
+    indptr3: np.ndarray
+    indices3: np.ndarray
+    keys: np.ndarray = field(repr=False)
+
+    @classmethod
+    def build(cls, n: int, stencil_lists: list[np.ndarray]) -> "_Pattern":
+        rows = [np.arange(n, dtype=np.int64)]
+        cols = [np.arange(n, dtype=np.int64)]
+        for st in stencil_lists:
+            if len(st) == 0:
+                continue
+            k = st.shape[1]
+            rows.append(np.repeat(st, k, axis=1).reshape(-1).astype(np.int64))
+            cols.append(np.tile(st, (1, k)).reshape(-1).astype(np.int64))
+        key = np.sort(np.concatenate(rows) * n + np.concatenate(cols))
+        key = key[np.concatenate(([True], key[1:] != key[:-1]))]
+        r = key // n
+        c = key % n
+        indptr = np.zeros(n + 1, np.int64)
+        np.add.at(indptr, r + 1, 1)
+        indptr = np.cumsum(indptr)
+        rowlen = np.diff(indptr)
+        indptr3 = np.zeros(3 * n + 1, np.int64)
+        indptr3[1:] = np.cumsum(np.repeat(3 * rowlen, 3))
+        s = np.arange(len(key))
+        blk_base = indptr3[3 * r] + 3 * (s - indptr[r])
+        blk_stride = 3 * rowlen[r]
+        indices3 = np.empty(indptr3[-1], np.int32)
+        a = np.arange(3)
+        pos = blk_base[:, None, None] + a[None, :, None] * blk_stride[:, None, None] + a[None, None, :]
+        indices3[pos] = (3 * c[:, None, None] + a[None, None, :]).astype(np.int32)
+        return cls(n, indptr, c.astype(np.int32), blk_base.astype(np.int64), blk_stride.astype(np.int64),
+                   indptr3, indices3, key)
+
+    def slots(self, stencils: np.ndarray) -> np.ndarray:
+        """(e, k, k) scalar-CSR slots of every vertex pair of each stencil (e, k)."""
+        k = stencils.shape[1]
+        r = np.repeat(stencils, k, axis=1).astype(np.int64)
+        c = np.tile(stencils, (1, k)).astype(np.int64)
+        s = np.searchsorted(self.keys, r * self.n + c)
+        return s.reshape(len(stencils), k, k).astype(np.int64)
+
+    def scalar_matrix(self, vals: np.ndarray) -> sp.csr_matrix:
+        return sp.csr_matrix((vals, self.indices, self.indptr), shape=(self.n, self.n))
+
+
+class ClothModel:
+    """Energy, forces and stiffness of a garment mesh in a scene (see module docstring).
+
+    State (x) is passed in; the model holds only the mesh, material, scene
+    terms and the friction anchors (updated by ``update_friction``).
+    """
+
+    ALL_TERMS = ("membrane", "bending", "gravity", "seams", "contact", "friction")
+
+    def __init__(self, mesh: GarmentMesh, fabric, scene: Scene | None = None):
+        scene = Scene() if scene is None else scene
+        self.mesh = mesh
+        self.fabric = fabric
+        self.scene = scene
+        self.n = mesh.n_vertices
+        self.tris = mesh.tris
+        self.mu, self.lam = lame_parameters(fabric.stretch_stiffness, fabric.poisson_ratio)
+        self.bend_stiffness = float(fabric.bend_stiffness)
+        self.area_density = float(fabric.area_density)
+        self.free = np.ones(self.n, bool)
+        self.free[mesh.pinned] = False
+
+        terms = ["membrane", "bending"]
+        if scene.gravity:
+            terms.append("gravity")
+        self.has_seams = bool(scene.seams and len(mesh.seam_emitters))
+        if self.has_seams:
+            terms.append("seams")
+        self.body: Body | None = None
+        if scene.body is not None:
+            if isinstance(scene.body, str):
+                from couture.cloth import body as body_mod
+
+                if scene.body != "mannequin":
+                    raise ValueError(f"unknown body {scene.body!r}; use a Body or 'mannequin'")
+                self.body = body_mod.load_mannequin_sdf()
+            else:
+                self.body = scene.body
+            terms.append("contact")
+            if scene.friction:
+                terms.append("friction")
+        elif scene.friction:
+            raise ValueError("Scene.friction needs a body")
+        self.terms: tuple[str, ...] = tuple(terms)
+
+        self.seam_stiffness = (scene.seam_stiffness if scene.seam_stiffness is not None
+                               else SEAM_STIFFNESS_PER_MU * self.mu)
+        self.contact_stiffness = (scene.contact_stiffness if scene.contact_stiffness is not None
+                                  else CONTACT_STIFFNESS_PER_MU * self.mu)
+        self.contact_offset = float(scene.contact_offset)
+        self.friction_stiffness = (scene.friction_stiffness if scene.friction_stiffness is not None
+                                   else self.contact_stiffness)
+        self.friction_static = float(getattr(fabric, "friction_static", 0.5))
+        self.friction_kinetic = float(getattr(fabric, "friction_kinetic", 0.3))
+
+        # topology: stencils and the sparse pattern, built once per mesh
+        self.bend_stencils = bending_stencils(self.tris)
+        if self.has_seams:
+            self.seam_stencils = np.column_stack([mesh.seam_emitters, mesh.seam_edges]).astype(np.int32)
+            w = mesh.seam_weights
+            self.seam_w = np.column_stack([np.ones_like(w), -(1.0 - w), -w])
+        else:
+            self.seam_stencils = np.zeros((0, 3), np.int32)
+            self.seam_w = np.zeros((0, 3))
+        self.pattern = _Pattern.build(self.n, [self.tris, self.bend_stencils, self.seam_stencils])
+        self.tri_slots = self.pattern.slots(self.tris)
+        self.bend_slots = self.pattern.slots(self.bend_stencils)
+        self.seam_slots = self.pattern.slots(self.seam_stencils)
+        self.diag_slots = self.pattern.slots(np.arange(self.n, dtype=np.int32)[:, None])[:, 0, 0].copy()
+        p = self.pattern
+        self._K = sp.csr_matrix((np.zeros(len(p.indices3)), p.indices3, p.indptr3), shape=(3 * self.n, 3 * self.n))
+        self._K.has_sorted_indices = True
+
+        # friction anchors: allocated only with a friction term, empty until contact
+        if "friction" in self.terms:
+            self.anchored = np.zeros(self.n, bool)
+            self.sliding = np.zeros(self.n, bool)
+            self.anchor = np.zeros((self.n, 3))
+            self.anchor_normal = np.zeros((self.n, 3))
+
+        self.set_rest_positions(mesh.X)
+
+    # ------------------------------------------------------------------
+    # rest-shape dependent data (cheap to refresh on a pattern edit)
+    # ------------------------------------------------------------------
+
+    def set_rest_positions(self, X: np.ndarray) -> None:
+        """Recompute everything that depends on X (n, 2); same topology and pattern."""
+        self.X = np.ascontiguousarray(X, dtype=np.float64)
+        m = len(self.tris)
+        self.Dminv = np.empty((m, 2, 2))
+        self.tri_area = np.empty(m)
+        K.membrane_rest(self.X, self.tris, self.Dminv, self.tri_area)
+        self.mass = np.zeros(self.n)
+        np.add.at(self.mass, self.tris.reshape(-1), np.repeat(self.tri_area * self.area_density / 3.0, 3))
+        self._rebuild_constant()
+
+    def set_bend_stiffness(self, bend_stiffness: float) -> None:
+        """Change k_b [N m] (e.g. the sensitivity node's stiffer floor) without a rebuild."""
+        self.bend_stiffness = float(bend_stiffness)
+        self._rebuild_constant()
+
+    def _bend_vals(self, X: np.ndarray) -> np.ndarray:
+        vals = np.zeros(len(self.pattern.indices))
+        if len(self.bend_stencils):
+            Kw, fac = bending_weights(X, self.bend_stencils)
+            coef = self.bend_stiffness * BEND_CONSTANT * fac
+            K.stencil_scatter(Kw, coef, self.bend_slots, vals)
+        return vals
+
+    def _rebuild_constant(self) -> None:
+        """Scalar matrices of the x-independent Hessians (bending, seams) and
+        their 3n-expanded data, added to every stiffness refill."""
+        nnz = len(self.pattern.indices)
+        self.bend_vals = self._bend_vals(self.X)
+        self.seam_vals = np.zeros(nnz)
+        if self.has_seams:
+            K.stencil_scatter(self.seam_w, np.full(len(self.seam_w), float(self.seam_stiffness)),
+                              self.seam_slots, self.seam_vals)
+        self.Qbend = self.pattern.scalar_matrix(self.bend_vals)
+        self.Qseam = self.pattern.scalar_matrix(self.seam_vals)
+        self.Qconst = self.pattern.scalar_matrix(self.bend_vals + self.seam_vals)
+        self._const_data = np.zeros(len(self.pattern.indices3))
+        K.scalar_to_block_diag(self.bend_vals + self.seam_vals, self.pattern.blk_base,
+                               self.pattern.blk_stride, self._const_data)
+        self._bend_const = np.zeros_like(self._const_data)
+        K.scalar_to_block_diag(self.bend_vals, self.pattern.blk_base, self.pattern.blk_stride, self._bend_const)
+        self._seam_const = self._const_data - self._bend_const
+        g = np.zeros((self.n, 3))
+        if "gravity" in self.terms:
+            g[:, 1] = -GRAVITY * self.mass
+        self.gravity_force = g
+
+    # ------------------------------------------------------------------
+    # energy, forces, stiffness
+    # ------------------------------------------------------------------
+
+    def _check_terms(self, terms):
+        if terms is None:
+            return self.terms
+        bad = [t for t in terms if t not in self.terms]
+        if bad:
+            raise ValueError(f"terms {bad} are not in this model {self.terms}")
+        return tuple(terms)
+
+    def _contact(self, x):
+        phi, grad = self.body.phi_grad(x)
+        return np.ascontiguousarray(phi, dtype=np.float64), np.ascontiguousarray(grad, dtype=np.float64)
+
+    def energy(self, x: np.ndarray, terms=None) -> float:
+        """Total potential energy [J] (or the sum over ``terms``)."""
+        return self._energy_forces(x, self._check_terms(terms), want_forces=False)[0]
+
+    def forces(self, x: np.ndarray, terms=None) -> np.ndarray:
+        """-dE/dx, shape (n, 3) [N] (gravity, elasticity, seams, contact, friction anchors)."""
+        return self._energy_forces(x, self._check_terms(terms), want_forces=True)[1]
+
+    def energy_and_forces(self, x: np.ndarray, terms=None) -> tuple[float, np.ndarray]:
+        return self._energy_forces(x, self._check_terms(terms), want_forces=True)
+
+    def _energy_forces(self, x, terms, want_forces):
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        f = np.zeros((self.n, 3))
+        e = 0.0
+        if "membrane" in terms:
+            if want_forces:
+                e += K.membrane_forces(x, self.tris, self.Dminv, self.tri_area, self.mu, self.lam, f)
+            else:
+                e += K.membrane_energy(x, self.tris, self.Dminv, self.tri_area, self.mu, self.lam)
+        lin = None
+        if "bending" in terms and "seams" in terms:
+            lin = self.Qconst
+        elif "bending" in terms:
+            lin = self.Qbend
+        elif "seams" in terms:
+            lin = self.Qseam
+        if lin is not None:
+            qx = lin @ x
+            if want_forces:
+                f -= qx
+            e += 0.5 * float(np.vdot(x, qx))
+        if "gravity" in terms:
+            f += self.gravity_force
+            e -= float(np.vdot(self.gravity_force, x))
+        if "contact" in terms:
+            phi, grad = self._contact(x)
+            e += K.contact_forces(phi, grad, self.contact_offset, self.contact_stiffness, f)
+        if "friction" in terms:
+            e += K.anchor_forces(x, self.anchored, self.anchor, self.anchor_normal, self.friction_stiffness, f)
+        return e, f
+
+    def stiffness(self, x: np.ndarray, terms=None, project: bool | None = None) -> sp.csr_matrix:
+        """d²E/dx² as a (3n, 3n) CSR matrix, PSD (membrane projected in
+        compression, contact Gauss-Newton). For all terms and the default
+        projection the same matrix object is refilled in place every call
+        (same indices, new data): copy it to keep it."""
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        terms_ = self._check_terms(terms)
+        project = self.scene.project_membrane if project is None else project
+        shared = terms is None and project == self.scene.project_membrane
+        data = self._K.data if shared else np.zeros_like(self._K.data)
+        p = self.pattern
+        if "bending" in terms_ and "seams" in terms_:
+            data[:] = self._const_data
+        elif "bending" in terms_:
+            data[:] = self._bend_const
+        elif "seams" in terms_:
+            data[:] = self._seam_const
+        else:
+            data[:] = 0.0
+        if "membrane" in terms_:
+            K.membrane_stiffness(x, self.tris, self.Dminv, self.tri_area, self.mu, self.lam, project,
+                                 self.tri_slots, p.blk_base, p.blk_stride, data)
+        if "contact" in terms_:
+            phi, grad = self._contact(x)
+            K.contact_stiffness(phi, grad, self.contact_offset, self.contact_stiffness,
+                                self.diag_slots, p.blk_base, p.blk_stride, data)
+        if "friction" in terms_:
+            K.anchor_stiffness(self.anchored, self.anchor_normal, self.friction_stiffness,
+                               self.diag_slots, p.blk_base, p.blk_stride, data)
+        if shared:
+            return self._K
+        return sp.csr_matrix((data, p.indices3, p.indptr3), shape=self._K.shape)
+
+    # ------------------------------------------------------------------
+    # residual, friction, sensitivity
+    # ------------------------------------------------------------------
+
+    @property
+    def free_dofs(self) -> np.ndarray:
+        """(3n,) bool, False for the dofs of pinned vertices."""
+        return np.repeat(self.free, 3)
+
+    def relative_residual(self, x: np.ndarray) -> float:
+        """||R_free|| / ||F_gravity|| (couture.solvers.base); without gravity
+        the denominator is max(||F_internal||, 1e-12), F_internal = all
+        non-gravity forces on all vertices."""
+        f = self.forces(x)
+        r = float(np.linalg.norm(f[self.free]))
+        if "gravity" in self.terms:
+            den = float(np.linalg.norm(self.gravity_force))
+        else:
+            den = max(float(np.linalg.norm(f)), 1e-12)
+        return r / den
+
+    def update_friction(self, x: np.ndarray) -> dict:
+        """Move, create or release friction anchors (Hasegawa 2003); no-op without friction.
+
+        In contact (phi < offset) a vertex without anchor gets one at its
+        current position (sticking). Anchored vertices: the tangential
+        spring force |f_t| = k_t |P(x - a)| is compared with the normal force
+        f_n = k_c (offset - phi): sticking while |f_t| <= mu_s f_n; beyond it
+        the vertex slides and the anchor is dragged along so that |f_t| =
+        mu_k f_n (dynamic mode, kept while |f_t| >= mu_k f_n). Anchors of
+        vertices out of contact are released. Returns counts.
+        """
+        if "friction" not in self.terms:
+            return {"anchored": 0, "sliding": 0, "created": 0, "released": 0}
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        phi, grad = self._contact(x)
+        pen = self.contact_offset - phi
+        contact = pen > 0.0
+        released = self.anchored & ~contact
+        self.anchored[released] = False
+        self.sliding[released] = False
+        created = contact & ~self.anchored
+        gn = grad / np.maximum(np.linalg.norm(grad, axis=1), 1e-300)[:, None]
+        self.anchor[created] = x[created]
+        self.anchor_normal[created] = gn[created]
+        self.anchored[created] = True
+        self.sliding[created] = False
+        idx = np.nonzero(self.anchored & ~created)[0]
+        if len(idx):
+            n_ = self.anchor_normal[idx]
+            d = x[idx] - self.anchor[idx]
+            dt = d - np.einsum("ij,ij->i", d, n_)[:, None] * n_
+            ft = self.friction_stiffness * np.linalg.norm(dt, axis=1)
+            fn = self.contact_stiffness * pen[idx]
+            limit = np.where(self.sliding[idx], self.friction_kinetic * fn, self.friction_static * fn)
+            slide = ft > limit
+            self.sliding[idx] = slide
+            if slide.any():
+                j = idx[slide]
+                keep = (self.friction_kinetic * fn[slide] / self.friction_stiffness)[:, None]
+                u = dt[slide] / np.linalg.norm(dt[slide], axis=1)[:, None]
+                # anchor trails the vertex at the kinetic limit, in the current tangent plane
+                nn = gn[j]
+                self.anchor[j] = x[j] - keep * (u - np.einsum("ij,ij->i", u, nn)[:, None] * nn)
+                self.anchor_normal[j] = nn
+        return {"anchored": int(self.anchored.sum()), "sliding": int(self.sliding.sum()),
+                "created": int(created.sum()), "released": int(released.sum())}
+
+    def bend_step(self, dX: np.ndarray) -> float:
+        """Central-difference step h for the bending part of dforces_dX:
+        1e-4 of the mean edge length per unit max|dX|. K and 3/(A0+A1) are
+        smooth rational functions of X, so the error is O((h|dX|/l)²) ~ 1e-8
+        relative on quality meshes while round-off stays ~ eps/1e-4 ~ 1e-12."""
+        e = self.X[self.tris[:, 1]] - self.X[self.tris[:, 0]]
+        lmean = float(np.mean(np.linalg.norm(e, axis=1)))
+        dmax = float(np.max(np.abs(dX))) if dX.size else 0.0
+        return 1e-4 * lmean / dmax if dmax > 0 else 0.0
+
+    def dforces_dX(self, x: np.ndarray, dX: np.ndarray, terms=None) -> np.ndarray:
+        """d forces(x; X + e dX)/de at e = 0, shape (n, 3) [N per unit e].
+
+        Membrane and gravity analytic; bending by a central difference of
+        its (x-independent) scalar matrix at X ± h dX (step: ``bend_step``).
+        Seams, contact and friction do not depend on X."""
+        terms = self._check_terms(terms)
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        dX = np.ascontiguousarray(dX, dtype=np.float64).reshape(self.n, 2)
+        df = np.zeros((self.n, 3))
+        if "membrane" in terms:
+            K.membrane_dforces_dX(x, self.X, dX, self.tris, self.Dminv, self.tri_area, self.mu, self.lam, df)
+        if "gravity" in terms:
+            # dA_t = A_t tr(Dminv dDm); m_i = rho/3 sum A_t
+            d1 = dX[self.tris[:, 1]] - dX[self.tris[:, 0]]
+            d2 = dX[self.tris[:, 2]] - dX[self.tris[:, 0]]
+            Di = self.Dminv
+            tr = Di[:, 0, 0] * d1[:, 0] + Di[:, 0, 1] * d1[:, 1] + Di[:, 1, 0] * d2[:, 0] + Di[:, 1, 1] * d2[:, 1]
+            dA = self.tri_area * tr
+            dm = np.zeros(self.n)
+            np.add.at(dm, self.tris.reshape(-1), np.repeat(dA * self.area_density / 3.0, 3))
+            df[:, 1] -= GRAVITY * dm
+        if "bending" in terms and len(self.bend_stencils):
+            h = self.bend_step(dX)
+            if h > 0:
+                dvals = (self._bend_vals(self.X + h * dX) - self._bend_vals(self.X - h * dX)) / (2.0 * h)
+                df -= self.pattern.scalar_matrix(dvals) @ x
+        return df

@@ -1,0 +1,78 @@
+"""Helpers shared by the solvers: residual bookkeeping, stall/divergence watch, pins."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def pinned_positions(model, x: np.ndarray) -> np.ndarray:
+    """A copy of x with pinned vertices put back where the model holds them
+    (``model.mesh.x0``; the contract: pins are held at their x0)."""
+    x = np.array(x, dtype=np.float64, copy=True)
+    mesh = getattr(model, "mesh", None)
+    if mesh is not None and getattr(mesh, "x0", None) is not None:
+        pin = ~model.free
+        x[pin] = mesh.x0[pin]
+    return x
+
+
+class ResidualScale:
+    """Relative residual from a force vector already at hand.
+
+    ``model.relative_residual(x)`` is ||f_free|| / ||F_gravity|| (see
+    couture.solvers.base); the denominator does not depend on x, so one call
+    recovers it and every later residual costs a norm, not a force evaluation.
+    """
+
+    def __init__(self, model, x: np.ndarray, f: np.ndarray):
+        self.free = model.free
+        num = float(np.linalg.norm(f[self.free]))
+        rr = float(model.relative_residual(x))
+        if num > 0 and rr > 0 and np.isfinite(rr):
+            self.den = num / rr
+        else:
+            self.den = None
+            self.model = model
+
+    def __call__(self, x: np.ndarray, f: np.ndarray) -> float:
+        if self.den is None:
+            return float(self.model.relative_residual(x))
+        return float(np.linalg.norm(f[self.free]) / self.den)
+
+
+class Watch:
+    """Stall and divergence watch over a residual sequence.
+
+    Stalled: the best residual did not improve by ``stall_factor`` over the last
+    ``window`` iterations. Diverged: non-finite values, or the residual grew
+    ``blowup`` times above its best.
+    """
+
+    def __init__(self, window: int, stall_factor: float = 0.99, blowup: float = 1e6):
+        self.window = window
+        self.stall_factor = stall_factor
+        self.blowup = blowup
+        self.best = np.inf
+        self.best_at = 0
+        self.mark = np.inf
+        self.mark_at = 0
+
+    def check(self, it: int, r: float) -> str:
+        if not np.isfinite(r):
+            return f"diverged: non-finite residual at iteration {it}"
+        if r < self.best:
+            self.best = r
+            self.best_at = it
+        if r > self.blowup * max(self.best, 1e-300) and self.best < np.inf:
+            return f"diverged: residual {r:.3g} is {r / self.best:.3g}x its best {self.best:.3g}"
+        if self.best < self.stall_factor * self.mark:
+            self.mark = self.best
+            self.mark_at = it
+        elif it - self.mark_at >= self.window:
+            return (f"stalled: residual best {self.best:.3g} did not improve by "
+                    f"{100 * (1 - self.stall_factor):.0f}% over {self.window} iterations")
+        return ""
+
+
+def finite(a: np.ndarray) -> bool:
+    return bool(np.all(np.isfinite(a)))

@@ -1,0 +1,291 @@
+"""Sparse linear algebra shared by the solvers: the reduced (free-DOF, seam-first)
+system, an IC(0)-preconditioned CG, and swappable direct Cholesky/LU backends.
+
+Direct backends (``factorize(A, backend=...)``), best first under ``'auto'``:
+
+- ``'cholmod'``  scikit-sparse CHOLMOD (supernodal Cholesky, symbolic analysis
+  reused across refactorizations). Optional extra ``couture[fast]``; needs the
+  SuiteSparse headers to build (``apt-get install libsuitesparse-dev``).
+- ``'pardiso'``  pypardiso (MKL PARDISO). Optional; a pip wheel, but MKL is a
+  ~220 MB download.
+- ``'splu'``     scipy SuperLU, always available (the CI fallback).
+
+``available_backends()`` lists what imports here.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from . import kernels
+
+
+class FactorizationError(RuntimeError):
+    """The matrix is not (numerically) positive definite for a Cholesky backend, or singular."""
+
+
+# --------------------------------------------------------------------------
+# reduced system: pinned DOFs removed, SC seam-first ordering
+# --------------------------------------------------------------------------
+
+
+def seam_first_order(n: int, free: np.ndarray, emitters=(), receivers=()) -> np.ndarray:
+    """Vertex order for the reduced system: seam emitters, then receivers, then the
+    rest (SC §7: ILU/IC favour large entries top-left). Pinned vertices dropped."""
+    rank = np.full(n, 2, np.int64)
+    if len(receivers):
+        rank[np.asarray(receivers).ravel()] = 1
+    if len(emitters):
+        rank[np.asarray(emitters)] = 0
+    order = np.lexsort((np.arange(n), rank))
+    return order[free[order]]
+
+
+class ReducedSystem:
+    """Maps a model's stiffness K (3n x 3n CSR, fixed pattern) to the reduced,
+    permuted SPD system ``A = c_M * diag(m) + c_K * K`` on free DOFs.
+
+    The index maps are built once from the pattern (values carried through
+    scipy's structural operations as 1-based positions); each call then only
+    gathers K.data, so forming A costs a memory copy, not a sparse slice.
+    """
+
+    def __init__(self, K: sp.csr_matrix, mass: np.ndarray, free: np.ndarray, vertex_order: np.ndarray):
+        K = sp.csr_matrix(K)
+        K.sort_indices()
+        self.nnz_K = K.nnz
+        self._K_indices = K.indices.copy()
+        dof = (3 * vertex_order[:, None] + np.arange(3)[None, :]).ravel()
+        self.dof = dof  # reduced index -> full DOF
+        self.nr = len(dof)
+        T = sp.csr_matrix((np.arange(1, K.nnz + 1, dtype=np.float64), K.indices, K.indptr), shape=K.shape)
+        S = T[dof][:, dof].tocsr()
+        S.sort_indices()
+        self.Ap = S.indptr.astype(np.int64)
+        self.Ai = S.indices.astype(np.int64)
+        self.A_map = (S.data.astype(np.int64) - 1)
+        rows = np.repeat(np.arange(self.nr), np.diff(S.indptr))
+        diag_pos = np.nonzero(S.indices == rows)[0]
+        if len(diag_pos) != self.nr:
+            raise ValueError("stiffness pattern lacks diagonal entries")
+        self.diag_pos = diag_pos
+        self.m_red = np.repeat(mass[vertex_order], 3)
+        low = rows >= S.indices
+        self.low_pos = np.nonzero(low)[0]
+        Lcount = np.bincount(rows[low], minlength=self.nr)
+        self.Lp = np.concatenate([[0], np.cumsum(Lcount)]).astype(np.int64)
+        self.Li = S.indices[low].astype(np.int64)
+        self.Ax = np.zeros(len(self.A_map))
+
+    def same_pattern(self, K: sp.csr_matrix) -> bool:
+        return K.nnz == self.nnz_K and np.array_equal(K.indices, self._K_indices)
+
+    def assemble(self, K: sp.csr_matrix, c_K: float, c_M: float) -> np.ndarray:
+        kernels.gather_add(self.Ax, K.data, self.A_map, c_K)
+        if c_M:
+            self.Ax[self.diag_pos] += c_M * self.m_red
+        return self.Ax
+
+    def matrix(self) -> sp.csr_matrix:
+        return sp.csr_matrix((self.Ax.copy(), self.Ai, self.Ap), shape=(self.nr, self.nr))
+
+    def restrict(self, v_full: np.ndarray) -> np.ndarray:
+        return v_full.ravel()[self.dof]
+
+    def prolong(self, v_red: np.ndarray, n: int) -> np.ndarray:
+        out = np.zeros(3 * n)
+        out[self.dof] = v_red
+        return out.reshape(n, 3)
+
+
+class IC0:
+    """Shifted incomplete Cholesky IC(0) of the Jacobi-scaled matrix.
+
+    The shift starts at ``shift0`` and grows ×10 on breakdown (Manteuffel's
+    shifted IC); it is kept for later refactorizations and relaxed again when
+    a factorization succeeds first time, so a sequence of similar matrices
+    pays for at most a few retries.
+    """
+
+    def __init__(self, system: ReducedSystem, shift0: float = 1e-3):
+        self.sys = system
+        self.shift = shift0
+        self.shift0 = shift0
+        self.Lx = np.zeros(len(system.Li))
+        self.dscale = np.ones(system.nr)
+        self.retries = 0
+
+    def factor(self, Ax: np.ndarray) -> None:
+        s = self.sys
+        d = Ax[s.diag_pos]
+        if not np.all(d > 0):
+            d = np.where(d > 0, d, np.max(np.abs(d)) + 1e-300)
+        self.dscale = 1.0 / np.sqrt(d)
+        Alow = Ax[s.low_pos]
+        first = True
+        while True:
+            bad = kernels.ic0_factor(s.Lp, s.Li, Alow, self.dscale, self.shift, self.Lx)
+            if bad < 0:
+                break
+            self.retries += 1
+            first = False
+            self.shift = 1.0 if self.shift <= 0 else self.shift * 10.0
+            if self.shift > 1e3:
+                raise FactorizationError("IC(0) breaks down even with a large shift")
+        if first and self.shift > self.shift0:
+            self.shift = max(self.shift0, self.shift / 10.0)
+
+
+def pcg(system: ReducedSystem, b: np.ndarray, x0: np.ndarray | None, pre: IC0 | None, rtol: float, maxiter: int):
+    """CG on the reduced system's current A with IC(0) (``pre``) or Jacobi. Returns (x, iters, relres)."""
+    x = np.zeros(system.nr) if x0 is None else np.array(x0, dtype=np.float64, copy=True)
+    if pre is None:
+        d = system.Ax[system.diag_pos]
+        ds = 1.0 / np.sqrt(np.where(d > 0, d, 1.0))
+        it, rr = kernels.pcg_ic0(system.Ap, system.Ai, system.Ax, system.Lp, system.Li, np.zeros(1), ds, b, x, rtol, maxiter, False)
+    else:
+        it, rr = kernels.pcg_ic0(system.Ap, system.Ai, system.Ax, system.Lp, system.Li, pre.Lx, pre.dscale, b, x, rtol, maxiter, True)
+    return x, int(it), float(rr)
+
+
+# --------------------------------------------------------------------------
+# direct backends
+# --------------------------------------------------------------------------
+
+
+def _have(mod: str) -> bool:
+    try:
+        __import__(mod)
+        return True
+    except Exception:
+        return False
+
+
+def available_backends() -> list[str]:
+    out = []
+    if _have("sksparse.cholmod"):
+        out.append("cholmod")
+    if _have("pypardiso"):
+        out.append("pardiso")
+    out.append("splu")
+    return out
+
+
+class Factor:
+    """A factorization of a symmetric matrix; ``solve(b)``, ``refactor(A)``, ``backend``."""
+
+    backend = "?"
+
+    def solve(self, b: np.ndarray) -> np.ndarray:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def refactor(self, A: sp.csr_matrix) -> None:  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+class _SpluFactor(Factor):
+    backend = "splu"
+
+    def __init__(self, A):
+        self.refactor(A)
+
+    def refactor(self, A):
+        try:
+            self._lu = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                                 options={"SymmetricMode": True})
+        except RuntimeError as e:  # exactly singular
+            raise FactorizationError(str(e)) from e
+        # SuperLU is an LU: a non-positive pivot means A is not SPD (needed for descent directions)
+        d = self._lu.U.diagonal()
+        if not np.all(np.isfinite(d)) or np.any(d <= 0):
+            raise FactorizationError("matrix not positive definite (non-positive LU pivot)")
+
+    def solve(self, b):
+        return self._lu.solve(b)
+
+
+class _CholmodFactor(Factor):
+    backend = "cholmod"
+
+    def __init__(self, A):
+        from sksparse.cholmod import analyze
+
+        self._f = analyze(sp.csc_matrix(A), mode="supernodal", ordering_method="amd")
+        self.refactor(A)
+
+    def refactor(self, A):
+        from sksparse.cholmod import CholmodNotPositiveDefiniteError
+
+        try:
+            self._f.cholesky_inplace(sp.csc_matrix(A))
+        except CholmodNotPositiveDefiniteError as e:
+            raise FactorizationError(str(e)) from e
+
+    def solve(self, b):
+        return self._f(b)
+
+
+class _PardisoFactor(Factor):
+    backend = "pardiso"
+
+    def __init__(self, A):
+        import pypardiso
+
+        self._s = pypardiso.PyPardisoSolver(mtype=2)  # real SPD
+        self._s.set_phase(12)
+        self.refactor(A)
+
+    def refactor(self, A):
+        from pypardiso.pardiso_wrapper import PyPardisoError
+
+        U = sp.triu(A, format="csr")
+        U.sort_indices()
+        self._A = U
+        try:
+            self._s.factorize(U)
+        except PyPardisoError as e:
+            raise FactorizationError(str(e)) from e
+
+    def solve(self, b):
+        x = self._s.solve(self._A, b)
+        if not np.all(np.isfinite(x)):
+            raise FactorizationError("PARDISO produced a non-finite solution")
+        return x
+
+
+_BACKENDS = {"splu": _SpluFactor, "cholmod": _CholmodFactor, "pardiso": _PardisoFactor}
+
+
+def resolve_backend(backend: str = "auto") -> str:
+    if backend == "auto":
+        return available_backends()[0]
+    if backend not in _BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; choose from {sorted(_BACKENDS)} or 'auto'")
+    return backend
+
+
+def factorize(A: sp.spmatrix, backend: str = "auto") -> Factor:
+    """Factor a symmetric positive definite A; raises FactorizationError when it is not."""
+    return _BACKENDS[resolve_backend(backend)](A)
+
+
+def time_backends(A: sp.spmatrix, repeats: int = 2) -> dict[str, dict[str, float]]:
+    """First factorization and refactorization wall times [s] of every available backend."""
+    out = {}
+    for name in available_backends():
+        t0 = time.perf_counter()
+        f = factorize(A, name)
+        t1 = time.perf_counter()
+        best = np.inf
+        for _ in range(repeats):
+            t = time.perf_counter()
+            f.refactor(A)
+            best = min(best, time.perf_counter() - t)
+        t = time.perf_counter()
+        f.solve(np.ones(A.shape[0]))
+        out[name] = {"first_s": t1 - t0, "refactor_s": best, "solve_s": time.perf_counter() - t}
+    return out

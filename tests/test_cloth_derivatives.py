@@ -1,0 +1,214 @@
+"""Every term's gradient and Hessian against central finite differences, the
+PSD projection, dforces_dX, and the reuse of the sparse pattern."""
+
+import numpy as np
+import pytest
+
+from couture.cloth import ClothModel, Scene
+from couture.cloth import kernels as K
+from couture.cloth.body import PlaneBody, SphereBody
+from couture.cloth.testing import random_drape, small_quality_mesh
+from couture.mesh import GarmentMesh
+from schemas.design import Fabric
+
+FABRIC = Fabric(stretch_stiffness=50.0, poisson_ratio=0.3, bend_stiffness=1e-4, area_density=0.15)
+
+
+def seamed_mesh(seed=0):
+    """Two small panels side by side with seam springs from the left panel's
+    right edge to the right panel's left edge (unequal vertex counts)."""
+    a = small_quality_mesh(seed)
+    b = small_quality_mesh(seed + 1)
+    Xb = b.X + np.array([0.12, 0.0])
+    X = np.vstack([a.X, Xb])
+    tris = np.vstack([a.tris, b.tris + len(a.X)])
+    em = np.nonzero(np.isclose(a.X[:, 0], a.X[:, 0].max(), atol=2e-3))[0]
+    rv = np.nonzero(np.isclose(Xb[:, 0], Xb[:, 0].min(), atol=2e-3))[0] + len(a.X)
+    rv = rv[np.argsort(X[rv, 1])]
+    edges, w = [], []
+    for e in em:
+        y = X[e, 1]
+        k = int(np.clip(np.searchsorted(X[rv, 1], y) - 1, 0, len(rv) - 2))
+        ya, yb = X[rv[k], 1], X[rv[k + 1], 1]
+        edges.append((rv[k], rv[k + 1]))
+        w.append(np.clip((y - ya) / (yb - ya), 0, 1))
+    return GarmentMesh(X=X, tris=tris, seam_emitters=em, seam_edges=np.array(edges), seam_weights=np.array(w))
+
+
+def model_and_state(scene=None, seed=0):
+    mesh = seamed_mesh(seed)
+    model = ClothModel(mesh, FABRIC, scene or Scene())
+    x = random_drape(mesh, seed=seed)
+    return model, x
+
+
+def fd_gradient_check(model, x, term, h=1e-6, seed=1):
+    rng = np.random.default_rng(seed)
+    f = model.forces(x, [term])
+    assert np.abs(f).max() > 0, f"{term}: analytic force trivially zero"
+    for _ in range(3):
+        d = rng.normal(size=x.shape)
+        fd = (model.energy(x + h * d, [term]) - model.energy(x - h * d, [term])) / (2 * h)
+        an = -np.vdot(f, d)
+        assert abs(fd - an) <= 1e-6 * max(abs(an), np.abs(f).max()), (term, fd, an)
+
+
+def fd_hessian_check(model, x, term, h=1e-6, seed=2, project=False, rtol=1e-6):
+    rng = np.random.default_rng(seed)
+    H = model.stiffness(x, [term], project=project)
+    assert abs(H).max() > 0, f"{term}: analytic Hessian trivially zero"
+    for _ in range(3):
+        d = rng.normal(size=x.shape)
+        fd = -(model.forces(x + h * d, [term]) - model.forces(x - h * d, [term])).reshape(-1) / (2 * h)
+        an = H @ d.reshape(-1)
+        assert np.abs(fd - an).max() <= rtol * np.abs(an).max(), (term, np.abs(fd - an).max(), np.abs(an).max())
+
+
+@pytest.mark.parametrize("term", ["membrane", "bending", "gravity", "seams"])
+def test_gradient_fd(term):
+    model, x = model_and_state()
+    assert term in model.terms
+    fd_gradient_check(model, x, term)
+
+
+@pytest.mark.parametrize("term", ["membrane", "bending", "seams"])
+def test_hessian_fd(term):
+    model, x = model_and_state()
+    fd_hessian_check(model, x, term)
+
+
+def test_gravity_hessian_is_zero_and_energy_linear():
+    model, x = model_and_state()
+    assert model.stiffness(x, ["gravity"]).count_nonzero() == 0
+    assert model.energy(x, ["gravity"]) == pytest.approx(np.sum(model.mass * 9.81 * x[:, 1]))
+
+
+def test_random_drape_has_compressed_and_stretched_triangles():
+    model, x = model_and_state()
+    H = np.empty((len(model.tris), 9, 9))
+    K.membrane_element_hessians(x, model.tris, model.Dminv, model.tri_area, model.mu, model.lam, False, H)
+    mins = np.linalg.eigvalsh(H).min(axis=1)
+    scale = np.abs(H).max()
+    assert (mins < -1e-6 * scale).sum() > 5, "the test state must exercise the PSD path"
+
+
+def test_projected_membrane_hessian_psd_and_exact_in_tension():
+    model, x = model_and_state()
+    m = len(model.tris)
+    H = np.empty((m, 9, 9))
+    Hp = np.empty((m, 9, 9))
+    K.membrane_element_hessians(x, model.tris, model.Dminv, model.tri_area, model.mu, model.lam, False, H)
+    K.membrane_element_hessians(x, model.tris, model.Dminv, model.tri_area, model.mu, model.lam, True, Hp)
+    scale = np.abs(H).max()
+    assert np.linalg.eigvalsh(Hp).min() > -1e-10 * scale
+    # whole assembled matrix PSD too
+    Kp = model.stiffness(x, ["membrane"]).toarray()
+    assert np.linalg.eigvalsh(Kp).min() > -1e-9 * np.abs(Kp).max()
+    # in tension (both principal 2nd PK stresses >= 0) the projection is the identity
+    stretched = x.copy()
+    stretched[:, :2] = model.X * np.array([1.15, 1.05])
+    stretched[:, 2] = 0.002 * np.sin(60 * model.X[:, 0])
+    K.membrane_element_hessians(stretched, model.tris, model.Dminv, model.tri_area, model.mu, model.lam, False, H)
+    K.membrane_element_hessians(stretched, model.tris, model.Dminv, model.tri_area, model.mu, model.lam, True, Hp)
+    np.testing.assert_allclose(Hp, H, rtol=0, atol=1e-12 * np.abs(H).max())
+
+
+def test_clamp_psd_2x2():
+    rng = np.random.default_rng(0)
+    Sp = np.empty((2, 2))
+    for _ in range(200):
+        A = rng.normal(size=(2, 2))
+        S = A + A.T
+        K._clamp_psd_2x2(S, Sp)
+        w, V = np.linalg.eigh(S)
+        ref = (V * np.maximum(w, 0)) @ V.T
+        np.testing.assert_allclose(Sp, ref, atol=1e-12)
+
+
+def test_contact_plane_exact_derivatives():
+    # a half-space: the Gauss-Newton Hessian is the exact Hessian
+    body = PlaneBody(point=np.array([0, 0, 0.0]), normal=np.array([0.2, 0.1, 1.0]))
+    model, x = model_and_state(Scene(body=body, contact_offset=0.01))
+    assert (body.phi_grad(x)[0] < 0.01).sum() > 5
+    fd_gradient_check(model, x, "contact")
+    fd_hessian_check(model, x, "contact", h=1e-7)
+
+
+def test_contact_sphere_gauss_newton_plus_curvature():
+    c = np.array([0.05, 0.04, -0.2])
+    body = SphereBody(center=c, radius=0.2005)
+    model, x = model_and_state(Scene(body=body, contact_offset=0.01))
+    phi, grad = body.phi_grad(x)
+    inside = phi < 0.01
+    assert inside.sum() > 5
+    fd_gradient_check(model, x, "contact")
+    # FD Hessian = GN part + k_c * pen * Hess(phi), Hess(phi) = (I - n n^T) / r for a sphere
+    h = 1e-7
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=x.shape)
+    fd = -(model.forces(x + h * d, ["contact"]) - model.forces(x - h * d, ["contact"])) / (2 * h)
+    gn = (model.stiffness(x, ["contact"]) @ d.reshape(-1)).reshape(-1, 3)
+    r = np.linalg.norm(x - c, axis=1)
+    pen = np.maximum(0.01 - phi, 0)
+    dt = d - np.einsum("ij,ij->i", d, grad)[:, None] * grad
+    curv = (model.contact_stiffness * pen / r)[:, None] * -dt
+    np.testing.assert_allclose(fd, gn + curv, atol=1e-6 * np.abs(gn).max())
+
+
+def test_friction_anchor_derivatives():
+    body = PlaneBody(point=np.array([0, 0, 0.0]), normal=np.array([0.0, 0.3, 1.0]))
+    model, x = model_and_state(Scene(body=body, friction=True))
+    model.update_friction(x)
+    assert model.anchored.sum() > 5
+    x2 = x + 0.001  # move off the anchors so the springs pull
+    fd_gradient_check(model, x2, "friction")
+    fd_hessian_check(model, x2, "friction")
+
+
+def test_total_stiffness_consistent_with_forces_in_tension():
+    model, x = model_and_state(Scene(body=PlaneBody(np.zeros(3), np.array([0, 0, 1.0]))))
+    xs = x.copy()
+    xs[:, :2] = model.X * 1.1
+    xs[:, 2] = 0.003 * np.cos(50 * model.X[:, 1])
+    fd_hessian_check(model, xs, "membrane", project=True)  # tension: projection inactive
+
+
+def test_stiffness_same_object_and_pattern():
+    model, x = model_and_state()
+    K1 = model.stiffness(x)
+    ind, ptr, data1 = K1.indices.copy(), K1.indptr.copy(), K1.data.copy()
+    K2 = model.stiffness(x * 1.01)
+    assert K2 is K1
+    assert np.array_equal(K2.indices, ind) and np.array_equal(K2.indptr, ptr)
+    assert not np.array_equal(K2.data, data1)
+    dense = K2.toarray()
+    np.testing.assert_allclose(dense, dense.T, atol=1e-12 * np.abs(dense).max())
+    assert K1.has_sorted_indices
+
+
+def test_dforces_dX_vs_rebuilt_models():
+    mesh = seamed_mesh(0)
+    scene = Scene()
+    model = ClothModel(mesh, FABRIC, scene)
+    x = random_drape(mesh, seed=4)
+    rng = np.random.default_rng(5)
+    dX = rng.normal(size=mesh.X.shape)
+    an = model.dforces_dX(x, dX)
+    assert np.abs(an).max() > 0
+    h = 1e-6
+    fp = ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X + h * dX}), FABRIC, scene).forces(x)
+    fm = ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X - h * dX}), FABRIC, scene).forces(x)
+    fd = (fp - fm) / (2 * h)
+    np.testing.assert_allclose(an, fd, atol=1e-6 * np.abs(fd).max())
+    for term in ["membrane", "bending", "gravity"]:
+        an_t = model.dforces_dX(x, dX, [term])
+        assert np.abs(an_t).max() > 0, term
+        fd_t = (ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X + h * dX}), FABRIC, scene).forces(x, [term])
+                - ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X - h * dX}), FABRIC, scene).forces(x, [term])
+                ) / (2 * h)
+        np.testing.assert_allclose(an_t, fd_t, atol=1e-6 * np.abs(fd_t).max(), err_msg=term)
+    # seams do not depend on X
+    assert np.abs(model.dforces_dX(x, dX, ["seams"])).max() == 0
+    # set_rest_positions matches a rebuild
+    model.set_rest_positions(mesh.X + h * dX)
+    np.testing.assert_allclose(model.forces(x), fp, rtol=0, atol=1e-12 * np.abs(fp).max())
