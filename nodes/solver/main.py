@@ -50,18 +50,18 @@ def main(config: Config) -> None:
         state = {"generation": -1, "dragging": False, "abort": False}
 
         def drape_msg(level: str, x: np.ndarray, res: float, it: int, wall: float,
-                      converged: bool = False, diagnosis: str = "") -> DrapeMsg:
+                      converged: bool = False, diagnosis: str = "", final: bool = True) -> DrapeMsg:
             lm = service.levels[level]
             return DrapeMsg(level=level, x=x.astype(np.float32), residual=float(res), iterations=int(it),
                             solver=config.name, method=config.solver, wall_time_s=float(wall),
                             converged=converged, diagnosis=diagnosis, generation=lm.mesh.generation,
-                            mesh_generation=lm.mesh_generation)
+                            mesh_generation=lm.mesh_generation, final=final)
 
         def should_abort() -> bool:
             return state["abort"] or node.stopping
 
         def on_progress(level: str, it: int, x: np.ndarray, res: float) -> None:
-            pubs[level].put(drape_msg(level, x, res, it, 0.0))
+            pubs[level].put(drape_msg(level, x, res, it, 0.0, final=False))
 
         def on_level(run: LevelRun) -> None:
             r = run.result
