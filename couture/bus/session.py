@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Generic, TypeVar
 
 import zenoh
+import zenoh.ext
 
 from schemas.messages import (
     Message,
@@ -46,6 +47,11 @@ DROP_TOPICS = ("drape/predicted",)
 """high-rate previews: a late one is worthless, so DROP under congestion; everything else BLOCKs"""
 
 EXPRESS_TOPICS = ("edit", "drape/predicted")
+# State topics: the publisher keeps its last sample and a subscriber that joins
+# late (a restarted solver, a reopened UI) receives it on declaration, so a
+# node resumes from the latest pattern, meshes and drapes (zenoh-ext advanced
+# pub/sub with history).
+STATE_TOPICS = ("pattern", "mesh/coarse", "mesh/fine", "drape/coarse", "drape/fine")
 """latency-critical: sent without batching"""
 
 RESERVED_SOLVER_NAMES = ("request", "result")
@@ -86,6 +92,8 @@ class BusConfig:
         conf.insert_json5("scouting/multicast/enabled", json.dumps(self.multicast))
         if self.mode != "client":
             conf.insert_json5("scouting/gossip/enabled", "true")
+        # advanced publishers (history for late joiners on state topics) need timestamps
+        conf.insert_json5("timestamping/enabled", '{"router": true, "peer": true, "client": true}')
         return conf
 
     def to_args(self) -> list[str]:
@@ -170,6 +178,16 @@ class Stats:
             return dict(self.counters)
 
 
+def topic_matches_state(pattern: str, topic: str) -> bool:
+    """Whether a subscription ``pattern`` (may end in ``*``/``**``) covers ``topic``."""
+    if pattern.endswith("**"):
+        return topic.startswith(pattern[:-2])
+    if pattern.endswith("*"):
+        head = pattern[:-1]
+        return topic.startswith(head) and "/" not in topic[len(head):]
+    return pattern == topic
+
+
 class TypedPublisher(Generic[M]):
     """Publishes one message type on one key; fills seq and stamp_ns."""
 
@@ -182,12 +200,20 @@ class TypedPublisher(Generic[M]):
         self._lock = threading.Lock()
         if drop is None:
             drop = topic in DROP_TOPICS
-        self._pub = bus.zenoh.declare_publisher(
-            self.key,
+        opts = dict(
             congestion_control=zenoh.CongestionControl.DROP if drop else zenoh.CongestionControl.BLOCK,
             reliability=zenoh.Reliability.RELIABLE,
             express=topic in EXPRESS_TOPICS,
         )
+        self._probe = None
+        if topic in STATE_TOPICS:
+            self._pub = zenoh.ext.declare_advanced_publisher(
+                bus.zenoh, self.key, cache=zenoh.ext.CacheConfig(max_samples=1), publisher_detection=True, **opts)
+            # AdvancedPublisher has no matching status: a plain publisher that
+            # never sends answers "does anyone subscribe here?"
+            self._probe = bus.zenoh.declare_publisher(self.key)
+        else:
+            self._pub = bus.zenoh.declare_publisher(self.key, **opts)
 
     def put(self, msg: M) -> int:
         """Send ``msg`` (validated); returns its seq."""
@@ -209,7 +235,7 @@ class TypedPublisher(Generic[M]):
 
     def matching(self) -> bool:
         """Whether any subscriber matches this key now."""
-        return bool(self._pub.matching_status.matching)
+        return bool((self._probe or self._pub).matching_status.matching)
 
     def wait_matching(self, timeout: float) -> bool:
         deadline = time.monotonic() + timeout
@@ -221,6 +247,8 @@ class TypedPublisher(Generic[M]):
 
     def close(self) -> None:
         try:
+            if self._probe is not None:
+                self._probe.undeclare()
             self._pub.undeclare()
         except Exception:  # session already closed
             pass
@@ -263,6 +291,7 @@ class Bus:
         expected: type[Message] | None = None,
         *,
         with_topic: bool = False,
+        history: bool | None = None,
     ) -> Any:
         """Call ``callback(msg)`` (or ``callback(topic, msg)`` with with_topic) for
         every valid message on ``couture/<session>/<topic>`` (wildcards ok).
@@ -299,7 +328,14 @@ class Bus:
                 self.stats.error(f"callback for {key} raised {type(e).__name__}: {e}")
                 log.error("callback for %s raised:\n%s", key, traceback.format_exc())
 
-        sub = self.zenoh.declare_subscriber(self.key(topic), on_sample)
+        if history is None:
+            history = any(topic_matches_state(topic, t) for t in STATE_TOPICS)
+        if history:  # late joiners get each state topic's last sample
+            sub = zenoh.ext.declare_advanced_subscriber(
+                self.zenoh, self.key(topic), on_sample,
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1))
+        else:
+            sub = self.zenoh.declare_subscriber(self.key(topic), on_sample)
         self._closeables.append(sub)
         return sub
 

@@ -1,0 +1,209 @@
+"""The 3D view: mannequin, drape (plain or colour-banded), the picked-point
+marker, and tugging the drape.
+
+viser 1.1 meshes take one colour each (no per-vertex colours except through a
+GLB, which the client re-parses and blanks on every update), so a colour map
+is drawn as ``n_bands`` meshes, one per colour band of the scale, each holding
+the triangles whose value falls in that band (a banded contour plot, as FEA
+post-processors draw them). The nodes are created once and then only their
+vertices/faces change, so a drag that started on one of them survives the
+updates. Without a colour map the drape is one mesh whose vertices alone are
+updated: the fast path.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+import viser
+
+from couture.mesh import GarmentMesh
+from couture.ui import colormaps
+from couture.ui.geometry import CameraState, MaterialPoint, closest_material_point, ray_hit
+
+MANNEQUIN_OBJ = Path(__file__).resolve().parents[1] / "assets" / "mannequin" / "body_a_pose.obj"
+
+DRAPE_COLOR = (214, 120, 92)
+BODY_COLOR = (205, 200, 195)
+_EMPTY_V = np.zeros((3, 3), np.float32)
+_EMPTY_F = np.array([[0, 1, 2]], np.uint32)
+
+
+def load_body(path: Path = MANNEQUIN_OBJ) -> tuple[np.ndarray, np.ndarray]:
+    """Mannequin vertices [m] (y up) and faces."""
+    import trimesh
+
+    m = trimesh.load(path, process=False, force="mesh")
+    return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
+
+
+TugCallback = Callable[[str, MaterialPoint, int, tuple[float, float], tuple[float, float], CameraState | None], None]
+"""cb(phase 'press'|'drag'|'release', material point, picked vertex,
+press screen position [px], current screen position [px], camera)"""
+
+
+class DrapeView:
+    """Owns the scene of the 3D viser server."""
+
+    def __init__(self, server: viser.ViserServer, *, n_bands: int = 9, show_body: bool = True):
+        self.server = server
+        self.n_bands = n_bands
+        self.mesh: GarmentMesh | None = None
+        self.x: np.ndarray | None = None
+        self.field = "none"
+        self.scale: colormaps.ColorScale | None = None
+        self.fabric_stretch = 20.0
+        self.fabric_poisson = 0.3
+        self.on_tug: TugCallback | None = None
+        self.on_pick: Callable[[MaterialPoint], None] | None = None
+        self._lock = threading.RLock()
+        self._tug: dict | None = None
+
+        server.scene.set_up_direction("+y")
+        server.initial_camera.position = (0.0, 0.35, 2.6)
+        server.initial_camera.look_at = (0.0, 0.15, 0.0)
+        server.initial_camera.up = (0.0, 1.0, 0.0)
+        self.body_distance: colormaps.BodyDistance | None = None
+        if show_body:
+            bv, bf = load_body()
+            self.body_vertices, self.body_faces = bv, bf
+            server.scene.add_mesh_simple("/body", bv.astype(np.float32), bf.astype(np.uint32),
+                                         color=BODY_COLOR, side="front", cast_shadow=False, receive_shadow=False)
+        self.plain = server.scene.add_mesh_simple("/drape/plain", _EMPTY_V, _EMPTY_F, color=DRAPE_COLOR,
+                                                  side="double", visible=False, cast_shadow=False,
+                                                  receive_shadow=False)
+        self.bands = [
+            server.scene.add_mesh_simple(f"/drape/band{b}", _EMPTY_V, _EMPTY_F, color=DRAPE_COLOR,
+                                         side="double", visible=False, cast_shadow=False,
+                                         receive_shadow=False)
+            for b in range(n_bands)
+        ]
+        self._band_tris: list[np.ndarray | None] = [None] * n_bands
+        self.marker = server.scene.add_icosphere("/marker", radius=0.012, color=(230, 30, 30), visible=False,
+                                                 cast_shadow=False, receive_shadow=False)
+        for h in [self.plain, *self.bands]:
+            h.on_drag(self._on_drag)
+            h.on_click(self._on_click)
+
+    # -- data in ----------------------------------------------------------------
+
+    def set_mesh(self, mesh: GarmentMesh) -> None:
+        with self._lock:
+            self.mesh = mesh
+            self.x = np.asarray(mesh.x0, np.float64)
+            self._band_tris = [None] * self.n_bands
+            self.plain.faces = mesh.tris.astype(np.uint32)
+            self._draw()
+
+    def set_field(self, field: str) -> None:
+        with self._lock:
+            self.field = field
+            if field == "pressure" and self.body_distance is None and hasattr(self, "body_vertices"):
+                self.body_distance = colormaps.BodyDistance(self.body_vertices, self.body_faces)
+            self._band_tris = [None] * self.n_bands
+            self._draw()
+
+    def set_x(self, x: np.ndarray) -> None:
+        with self._lock:
+            if self.mesh is None or len(x) != self.mesh.n_vertices:
+                return
+            self.x = np.asarray(x, np.float64)
+            self._draw()
+
+    # -- drawing ------------------------------------------------------------------
+
+    def field_values(self) -> np.ndarray | None:
+        if self.mesh is None or self.x is None:
+            return None
+        return colormaps.field_values(self.field, self.mesh.X, self.x, self.mesh.tris,
+                                      stretch_stiffness=self.fabric_stretch, poisson_ratio=self.fabric_poisson,
+                                      body_distance=self.body_distance)
+
+    def _draw(self) -> None:
+        mesh, x = self.mesh, self.x
+        if mesh is None or x is None:
+            return
+        values = self.field_values() if self.field != "none" else None
+        xf = x.astype(np.float32)
+        with self.server.atomic():
+            if values is None:
+                self.scale = None
+                self.plain.vertices = xf
+                self.plain.visible = True
+                for h in self.bands:
+                    h.visible = False
+                return
+            self.plain.visible = False
+            self.scale = colormaps.auto_scale(self.field, values, self.n_bands)
+            band = self.scale.band_of(values)
+            colors = self.scale.band_colors()
+            order = np.argsort(band, kind="stable")
+            bounds = np.searchsorted(band[order], np.arange(self.n_bands + 1))
+            for b, h in enumerate(self.bands):
+                tri_idx = order[bounds[b]:bounds[b + 1]]
+                if tri_idx.size == 0:
+                    h.visible = False
+                    self._band_tris[b] = None
+                    continue
+                t = mesh.tris[tri_idx]
+                uniq, inv = np.unique(t, return_inverse=True)
+                h.color = tuple(int(c) for c in colors[b])
+                h.vertices = xf[uniq]
+                prev = self._band_tris[b]
+                if prev is None or prev.shape != tri_idx.shape or not np.array_equal(prev, tri_idx):
+                    h.faces = inv.reshape(-1, 3).astype(np.uint32)
+                    self._band_tris[b] = tri_idx
+                h.visible = True
+
+    def show_marker(self, mp: MaterialPoint | None) -> None:
+        if mp is None or self.mesh is None or self.x is None:
+            self.marker.visible = False
+            return
+        self.marker.position = tuple(mp.on(self.x, self.mesh.tris))
+        self.marker.visible = True
+
+    # -- interaction ----------------------------------------------------------------
+
+    def _on_click(self, event) -> None:
+        with self._lock:
+            if self.mesh is None or self.x is None:
+                return
+            hit = ray_hit(self.x, self.mesh.tris, event.ray_origin, event.ray_direction)
+        if hit is None:
+            return
+        mp = hit[0]
+        self.show_marker(mp)
+        if self.on_pick is not None:
+            self.on_pick(mp)
+
+    def _screen_px(self, client, pos01) -> tuple[float, float]:
+        cam = client.camera
+        return (float(pos01[0]) * cam.image_width, float(pos01[1]) * cam.image_height)
+
+    async def _on_drag(self, event) -> None:
+        # async: viser runs async callbacks in order on its event loop (sync ones
+        # go to a thread pool and may reorder press/drag/release)
+        with self._lock:
+            if self.mesh is None or self.x is None:
+                return
+            phase = {"start": "press", "update": "drag", "end": "release"}[event.phase]
+            if phase == "press":
+                mp = closest_material_point(self.x, self.mesh.tris, event.start_position)
+                try:
+                    cam = CameraState.from_viser(event.client.camera)
+                except Exception:
+                    cam = None
+                p0 = self._screen_px(event.client, event.start_screen_pos)
+                self._tug = {"mp": mp, "vertex": mp.nearest_vertex(self.mesh.tris), "p0": p0, "cam": cam}
+            tug = self._tug
+            if tug is None:
+                return
+            p = self._screen_px(event.client, event.end_screen_pos)
+            if phase == "release":
+                self._tug = None
+        self.show_marker(tug["mp"])
+        if self.on_tug is not None:
+            self.on_tug(phase, tug["mp"], tug["vertex"], tug["p0"], p, tug["cam"])

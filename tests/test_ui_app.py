@@ -1,0 +1,195 @@
+"""CoutureUI without a browser: controls → callbacks, coalescing, liveness,
+tools → strokes couture.pattern accepts, exports that re-import, and the bus
+adapter on a real (loopback) Zenoh session."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from couture.bus import free_port
+from couture.ui import CoutureUI, UIConfig
+from couture.ui.demo import demo_sheet
+
+
+def wait_for(cond, timeout=10.0):
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        if cond():
+            return True
+        time.sleep(0.02)
+    return False
+
+
+@pytest.fixture(scope="module")
+def ui(tmp_path_factory):
+    ui = CoutureUI(UIConfig(port=free_port(), export_dir=tmp_path_factory.mktemp("exports"), draft_locally=False))
+    ui.start()
+    mesh, pattern = demo_sheet(1500)
+    ui.show_pattern(pattern)
+    ui.show_mesh(mesh)
+    ui.show_drape(mesh.x0, "fine", "demo", residual=1e-3)
+    assert wait_for(lambda: ui.frames_pushed >= 1)
+    ui.demo_mesh = mesh
+    yield ui
+    ui.stop()
+
+
+def test_slider_change_is_a_design_change(ui):
+    got = []
+    ui.on_design_changed = got.append
+    name, h = next(iter(ui.gui_params.items()))
+    h.value = float(h.value) + 0.01
+    ui._on_param(name)  # what the slider's on_update runs when the browser moves it
+    assert got and got[-1].sloper.params[name] == pytest.approx(float(h.value))
+    ui.on_design_changed = None
+
+
+def test_fabric_preset_sets_table1_values(ui):
+    got = []
+    ui.on_design_changed = got.append
+    ui.gui_preset.value = "stiff"
+    ui._on_preset()
+    f = got[-1].fabric
+    assert (f.name, f.bend_stiffness, f.stretch_stiffness, f.area_density) == ("stiff", 3e-4, 2000.0, 0.08)
+    ui.on_design_changed = None
+
+
+def test_drapes_are_coalesced_and_newest_wins(ui):
+    x0 = ui.demo_mesh.x0
+    n0 = ui.frames_pushed
+    for k in range(200):
+        ui.show_drape(x0 + [0.0, 0.0, 1e-4 * k], "predicted", "gmls", error_estimate=0.01, tag=k)
+    assert wait_for(lambda: ui.on_screen is not None and ui.on_screen.tag == 199)
+    assert ui.frames_pushed - n0 < 100  # bursts collapse into few renders
+    np.testing.assert_allclose(ui.view3d.x, x0 + [0.0, 0.0, 0.0199])
+
+
+def test_dead_node_is_shown_and_last_drape_stays(ui):
+    ui.set_live_nodes({"solver-kinetic": True})
+    ui.set_node_status("solver-kinetic", kind="solver", state="running", rates={"drape": 2.0})
+    assert wait_for(lambda: "solver-kinetic" in ui.gui_solver.options)
+    on_screen = ui.on_screen
+    ui.set_live_nodes({"solver-kinetic": False})
+    assert wait_for(lambda: "DEAD" in ui.gui_status.content)
+    assert ui.on_screen is on_screen and "solver-kinetic" not in ui.gui_solver.options
+
+
+def test_colour_maps_draw_bands_with_legend(ui):
+    for field in ("strain", "stress"):
+        ui.gui_field.value = field
+        ui._on_field()
+        assert ui.view3d.scale is not None and "background:rgb" in ui.gui_legend.content
+        assert any(h.visible for h in ui.view3d.bands) and not ui.view3d.plain.visible
+    ui.gui_field.value = "none"
+    ui._on_field()
+    assert ui.view3d.plain.visible and ui.gui_legend.content == ""
+
+
+def test_exports_reimport(ui):
+    import ezdxf
+    import trimesh
+
+    obj = ui.export("drape", "obj")
+    m = trimesh.load(obj, process=False, force="mesh")
+    assert len(m.vertices) == ui.demo_mesh.n_vertices and len(m.faces) == ui.demo_mesh.n_triangles
+    np.testing.assert_allclose(np.asarray(m.vertices), ui.view3d.x, atol=1e-6)
+    glb = ui.export("drape", "glb")
+    g = trimesh.load(glb, process=False, force="mesh")
+    assert len(g.faces) == ui.demo_mesh.n_triangles
+    dxf = ui.export("pattern", "dxf")
+    doc = ezdxf.readfile(dxf)
+    # couture.pattern's AAMA exporter puts each piece in a block; find the
+    # closed polyline that has the outline's vertices, wherever it lives
+    outline = ui.pattern.panels[0].outline
+    polys = [e for layout in (doc.modelspace(), *doc.blocks) for e in layout
+             if e.dxftype() == "POLYLINE" and e.is_closed and len(list(e.vertices)) == len(outline)]
+    assert polys
+    pts = np.array([tuple(v.dxf.location)[:2] for v in polys[0].vertices])
+    np.testing.assert_allclose(pts.max(0) - pts.min(0), np.ptp(outline, axis=0) * 1000, rtol=1e-6)
+    assert ui.export("pattern", "svg").read_text().startswith("<svg")
+    assert ui.export("pattern", "pdf").read_bytes().startswith(b"%PDF")
+
+
+def test_tools_make_strokes_the_pattern_model_accepts(tmp_path):
+    from couture.pattern import draft
+    from schemas.design import Design
+
+    ui = CoutureUI(UIConfig(port=free_port(), export_dir=tmp_path, show_body=False, draft_locally=False))
+    ui.start()
+    try:
+        pat = draft(Design())
+        ui.show_pattern(pat)
+        got = []
+        ui.on_design_changed = got.append
+        gore = pat.panels[0]
+        hem = next(s for s in gore.segments if s.name == "hem")
+        p_hem = ui.view2d.display(gore.name, gore.outline[(hem.start + hem.stop) // 2])
+        ui.arm_tool("dart")
+        ui._on_pattern_click(p_hem + [0.0, 0.001], gore.name)
+        dart = got[-1].strokes[-1]
+        assert (dart.kind, dart.panel, dart.params["segment"]) == ("dart", gore.name, "hem")
+        drafted = draft(got[-1])
+        assert len(drafted.panel(gore.name).outline) > len(gore.outline)  # the dart is in the outline
+        ui.arm_tool("seam")
+        ui._on_pattern_click(p_hem, gore.name)
+        assert len(got) == 1  # the first pick alone changes nothing
+        other = pat.panels[1]
+        oh = next(s for s in other.segments if s.name == "hem")
+        ui._on_pattern_click(ui.view2d.display(other.name, other.outline[(oh.start + oh.stop) // 2]), other.name)
+        seam = got[-1].strokes[-1]
+        assert seam.kind == "seam" and {seam.params["a_panel"], seam.params["b_panel"]} == {gore.name, other.name}
+        # a picked pattern point without a tool is located on the mesh
+        ui.arm_tool(None)
+        assert ui._armed is None
+    finally:
+        ui.stop()
+
+
+@pytest.mark.slow
+def test_bus_adapter_roundtrip(tmp_path):
+    """The ui node's adapter on a real loopback Zenoh session: a drape message
+    reaches the screen, a design change and a drag go out as messages."""
+    from couture.bus import BusConfig, Node, open_session
+    from nodes.ui.main import UIAdapter
+    from schemas.convert import mesh_to_msg
+    from schemas.messages import DrapeMsg, EditMsg, PatternMsg
+
+    port = free_port()
+    session = f"uitest{port}"
+    ui = CoutureUI(UIConfig(port=free_port(), export_dir=tmp_path, show_body=False, draft_locally=False))
+    ui.start()
+    try:
+        with Node("ui", BusConfig(session=session, listen=[f"tcp/127.0.0.1:{port}"]), kind="ui",
+                  install_signals=False) as node, \
+                open_session(BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[])) as peer:
+            UIAdapter(node, ui, "ui")
+            patterns, edits = [], []
+            peer.subscribe("pattern", patterns.append)
+            peer.subscribe("edit", edits.append)
+            mesh_pub = peer.publisher("mesh/fine", type(mesh_to_msg(demo_sheet(300)[0])))
+            drape_pub = peer.publisher("drape/fine", DrapeMsg)
+            time.sleep(0.5)
+            mesh, pattern = demo_sheet(300)
+            ui.show_pattern(pattern)
+            mesh_pub.put(mesh_to_msg(mesh))
+            assert wait_for(lambda: "fine" in ui.meshes)
+            drape_pub.put(DrapeMsg(level="fine", x=mesh.x0 + 0.01, residual=2e-4, solver="kinetic", method="kinetic"))
+            assert wait_for(lambda: ui.on_screen is not None and ui.on_screen.method == "kinetic")
+            np.testing.assert_allclose(ui.view3d.x, mesh.x0 + 0.01)
+            name = next(iter(ui.gui_params))
+            ui.gui_params[name].value = float(ui.gui_params[name].value) + 0.01
+            ui._on_param(name)
+            assert wait_for(lambda: any(isinstance(m, PatternMsg) and m.source == "ui" for m in patterns))
+            h = ui.view2d.handles[0]
+            ui._on_handle_drag("press", h, np.zeros(2))
+            ui._on_handle_drag("drag", h, np.array([0.01, 0.0]))
+            ui._on_handle_drag("release", h, np.array([0.02, 0.0]))
+            assert wait_for(lambda: len(edits) == 3)
+            assert [e.phase for e in edits] == ["press", "drag", "release"]
+            assert isinstance(edits[-1], EditMsg) and edits[-1].element == h.element
+            np.testing.assert_allclose(edits[-1].d.numpy(), [0.02, 0.0])
+    finally:
+        ui.stop()

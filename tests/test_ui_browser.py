@@ -1,0 +1,130 @@
+"""The UI in a real headless chromium (Debian's; see tests/browser/chromium.py).
+
+Software WebGL on two cores is slow, so every wait is on server-side events
+(client connected, camera known, callbacks fired), never on fixed sleeps.
+One browser and one UI serve the whole module to keep runs short.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from browser.chromium import ARTIFACTS, available, browser_page, wait_camera, wait_until
+
+pytestmark = [pytest.mark.browser, pytest.mark.skipif(not available(), reason="needs /usr/bin/chromium + playwright")]
+
+
+@pytest.fixture(scope="module")
+def session():
+    from couture.bus import free_port
+    from couture.ui import CoutureUI, UIConfig
+    from couture.ui.demo import demo_sheet
+
+    ARTIFACTS.mkdir(exist_ok=True)
+    ui = CoutureUI(UIConfig(port=free_port(), export_dir=ARTIFACTS / "exports", draft_locally=False))
+    ui.start()
+    mesh, pattern = demo_sheet(2000)
+    ui.show_pattern(pattern)
+    ui.show_mesh(mesh)
+    ui.show_drape(mesh.x0, "fine", "demo", residual=1e-3)
+    events = {"design": [], "edit": []}
+    ui.on_design_changed = events["design"].append
+    ui.on_edit = events["edit"].append
+    with browser_page() as page:
+        page.goto(ui.page_url)
+        c3 = wait_camera(ui.server3d, page=page)
+        c2 = wait_camera(ui.server2d, page=page)
+        # the drape and the status line have reached the 3D frame
+        f3 = page.frame_locator("#view3d")
+        f3.locator("#couture-frame[data-seq='1']").wait_for(timeout=60_000)
+        yield {"ui": ui, "page": page, "events": events, "mesh": mesh, "pattern": pattern, "c3": c3, "c2": c2}
+    ui.stop()
+
+
+def _iframe_origin(page, sel: str) -> np.ndarray:
+    box = page.locator(sel).bounding_box()
+    return np.array([box["x"], box["y"]])
+
+
+def test_page_loads_with_garment_on_mannequin(session):
+    page, ui = session["page"], session["ui"]
+    assert ui.frames_pushed >= 1 and ui.on_screen is not None
+    page.wait_for_timeout(1500)  # let software WebGL draw a frame
+    page.screenshot(path=str(ARTIFACTS / "ui_page.png"))
+    # the garment covers the middle of the 3D view: project its centre and check it is on screen
+    cam = __import__("couture.ui.geometry", fromlist=["CameraState"]).CameraState.from_viser(session["c3"].camera)
+    uv = cam.project(session["mesh"].x0.mean(axis=0, keepdims=True))[0]
+    assert 0.0 < uv[0] < 1.0 and 0.0 < uv[1] < 1.0
+
+
+def test_sloper_slider_change_publishes_design(session):
+    page, ui, events = session["page"], session["ui"], session["events"]
+    n0 = len(events["design"])
+    before = dict(ui.design.sloper.params)
+    slider = page.frame_locator("#view3d").get_by_role("slider").first
+    slider.focus()
+    slider.press("ArrowRight")
+    wait_until(lambda: len(events["design"]) > n0, 30, page)
+    d = events["design"][-1]
+    changed = {k for k, v in d.sloper.params.items() if before.get(k) != v}
+    assert changed, d.sloper.params
+
+
+def _drag(page, start, end, steps=8):
+    page.mouse.move(*start)
+    page.mouse.down()
+    for k in range(1, steps + 1):
+        f = k / steps
+        page.mouse.move(start[0] + f * (end[0] - start[0]), start[1] + f * (end[1] - start[1]))
+        page.wait_for_timeout(80)  # viser throttles drag messages to 20 Hz
+    page.mouse.up()
+
+
+def test_pattern_handle_drag_yields_press_drag_release(session):
+    from couture.ui.geometry import CameraState
+
+    page, ui, events = session["page"], session["ui"], session["events"]
+    cam = CameraState.from_viser(session["c2"].camera)
+    handles = ui.view2d.handles
+    i = next(k for k, h in enumerate(handles) if h.at == "mid" and h.segment == "hem")
+    p = ui.view2d.handle_positions()[i]
+    px = cam.to_pixels(p[None])[0] + _iframe_origin(page, "#pattern")
+    n0 = len(events["edit"])
+    _drag(page, px, px + np.array([0.0, 60.0]))
+    wait_until(lambda: any(e["phase"] == "release" for e in events["edit"][n0:]), 30, page)
+    got = events["edit"][n0:]
+    phases = [e["phase"] for e in got]
+    assert phases[0] == "press" and phases[-1] == "release" and "drag" in phases, phases
+    assert {e["element"] for e in got} == {handles[i].element}
+    assert len({e["edit_id"] for e in got}) == 1
+    assert got[-1]["d"][1] < -0.01  # dragged down the screen = -y in the pattern plane
+    # the release committed a curve stroke to the design
+    wait_until(lambda: any(s.kind == "curve" for s in ui.design.strokes), 10, page)
+    page.screenshot(path=str(ARTIFACTS / "ui_after_pattern_drag.png"))
+
+
+def test_drape_tug_yields_edits_with_camera(session):
+    from couture.ui.geometry import CameraState
+
+    page, ui, events = session["page"], session["ui"], session["events"]
+    cam = CameraState.from_viser(session["c3"].camera)
+    mesh = session["mesh"]
+    x = ui.view3d.x
+    # a front vertex of the skirt (largest z), half-way down
+    mid = np.abs(mesh.X[:, 1] - 0.25) < 0.03
+    v = int(np.flatnonzero(mid)[np.argmax(x[mid, 2])])
+    px = cam.to_pixels(x[v][None])[0] + _iframe_origin(page, "#view3d")
+    n0 = len(events["edit"])
+    _drag(page, px, px + np.array([40.0, 0.0]))
+    wait_until(lambda: any(e["phase"] == "release" for e in events["edit"][n0:]), 30, page)
+    got = events["edit"][n0:]
+    assert got[0]["phase"] == "press" and got[-1]["phase"] == "release"
+    e = got[-1]
+    assert e["picked_vertex"] >= 0 and np.asarray(e["view_proj"]).shape == (4, 4)
+    assert e["d"][0] > 10  # pixels to the right
+    # the picked vertex projects near where the pointer went down
+    vp = np.asarray(e["view_proj"]) @ np.append(x[e["picked_vertex"]], 1.0)
+    ndc = vp[:2] / vp[3]
+    pix = np.array([(ndc[0] + 1) / 2 * e["viewport_px"][0], (1 - ndc[1]) / 2 * e["viewport_px"][1]])
+    assert np.linalg.norm(pix - (px - _iframe_origin(page, "#view3d"))) < 25

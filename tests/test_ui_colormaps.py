@@ -1,0 +1,111 @@
+"""Colour-map fields and picking geometry of the UI (pure numpy)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from couture.mesh import grid_sheet
+from couture.ui import colormaps as cm
+from couture.ui.geometry import CameraState, MaterialPoint, locate_in_pattern, ray_hit
+
+
+@pytest.fixture(scope="module")
+def sheet():
+    return grid_sheet(0.4, 0.3, 12, 9)
+
+
+def flat(X, sx=1.0, sy=1.0):
+    return np.column_stack([sx * X[:, 0], sy * X[:, 1], np.zeros(len(X))])
+
+
+def test_uniform_stretch_green_strain(sheet):
+    # stretch 1.1 in x, 1 in y: E = diag((1.1² - 1) / 2, 0) = diag(0.105, 0)
+    ps = cm.principal_strain(sheet.X, flat(sheet.X, 1.1), sheet.tris)
+    np.testing.assert_allclose(ps[:, 1], 0.105, atol=1e-12)
+    np.testing.assert_allclose(ps[:, 0], 0.0, atol=1e-12)
+
+
+def test_strain_is_rotation_invariant(sheet):
+    x = flat(sheet.X, 1.2, 0.9)
+    th = 0.7
+    R = np.array([[np.cos(th), 0, np.sin(th)], [0, 1, 0], [-np.sin(th), 0, np.cos(th)]])
+    a = cm.principal_strain(sheet.X, x, sheet.tris)
+    b = cm.principal_strain(sheet.X, x @ R.T + [0.3, -1.0, 2.0], sheet.tris)
+    np.testing.assert_allclose(a, b, atol=1e-12)
+    np.testing.assert_allclose(a[:, 0], 0.5 * (0.81 - 1), atol=1e-12)
+    np.testing.assert_allclose(a[:, 1], 0.5 * (1.44 - 1), atol=1e-12)
+
+
+def test_rest_state_has_zero_strain_and_stress(sheet):
+    assert np.abs(cm.principal_strain(sheet.X, flat(sheet.X), sheet.tris)).max() < 1e-12
+    assert np.abs(cm.principal_stress(sheet.X, flat(sheet.X), sheet.tris, 200.0)).max() < 1e-9
+
+
+def test_uniaxial_stress_matches_stvk(sheet):
+    # small stretch s in x with y held: S = (λ + 2μ) E_xx along x, λ E_xx along y;
+    # Cauchy σ = F S F^T / J: σ_xx = s² S_xx / s = s S_xx, σ_yy = S_yy / s
+    E, nu, s = 200.0, 0.3, 1.01
+    lam, mu = cm.lame_membrane(E, nu)
+    exx = 0.5 * (s * s - 1)
+    ps = cm.principal_stress(sheet.X, flat(sheet.X, s), sheet.tris, E, nu)
+    np.testing.assert_allclose(ps[:, 1], s * (lam + 2 * mu) * exx, rtol=1e-10)
+    np.testing.assert_allclose(ps[:, 0], lam * exx / s, rtol=1e-10)
+
+
+def test_contact_pressure_is_force_over_area(sheet):
+    n = len(sheet.X)
+    d = np.full(n, 0.02)
+    d[0] = 0.004  # 6 mm inside the 1 cm offset
+    p = cm.contact_pressure(sheet.X, sheet.tris, d, offset=0.01, contact_stiffness=50.0)
+    A = cm.rest_vertex_areas(sheet.X, sheet.tris)
+    assert np.isclose(A.sum(), 0.4 * 0.3)
+    assert np.isclose(p[0], 50.0 * 0.006 / A[0])
+    assert np.count_nonzero(p) == 1
+
+
+def test_color_scale_bands_and_legend():
+    s = cm.ColorScale(-1.0, 1.0, 4, diverging=True, unit="", label="strain")
+    np.testing.assert_array_equal(s.band_of(np.array([-5, -0.9, -0.1, 0.1, 0.9, 5])), [0, 0, 1, 2, 3, 3])
+    cols = s.band_colors()
+    assert cols.shape == (4, 3) and cols.dtype == np.uint8
+    html = s.legend_html()
+    assert html.count("background:rgb") == 4 and "-1" in html and "strain" in html
+    auto = cm.auto_scale("strain", np.array([0.0, 0.01, -0.02]))
+    assert auto.lo == -auto.hi and auto.hi > 0
+
+
+def test_locate_in_pattern_and_material_point_roundtrip(sheet):
+    p = np.array([0.123, 0.211])
+    mp = locate_in_pattern(sheet.X, sheet.tris, p)
+    np.testing.assert_allclose(mp.on(sheet.X, sheet.tris), p, atol=1e-12)
+    # the same material point on a stretched drape
+    x = flat(sheet.X, 2.0, 3.0)
+    np.testing.assert_allclose(mp.on(x, sheet.tris), [0.246, 0.633, 0.0], atol=1e-12)
+
+
+def test_ray_hit_finds_the_material_point(sheet):
+    x = flat(sheet.X)
+    hit = ray_hit(x, sheet.tris, origin=(0.2, 0.1, 1.0), direction=(0.0, 0.0, -1.0))
+    assert hit is not None
+    mp, t = hit
+    assert np.isclose(t, 1.0)
+    np.testing.assert_allclose(mp.on(x, sheet.tris), [0.2, 0.1, 0.0], atol=1e-12)
+    assert ray_hit(x, sheet.tris, (5.0, 5.0, 1.0), (0.0, 0.0, -1.0)) is None
+
+
+def test_camera_projection_conventions():
+    # camera at +z looking down -z with +y up: OpenCV rotation is diag(1, -1, -1)
+    # (a 180° turn about x: wxyz = (0, 1, 0, 0))
+    cam = CameraState(np.array([0.0, 0.0, 2.0]), np.array([0.0, 1.0, 0.0, 0.0]), np.deg2rad(60), 1.5, 600, 400)
+    np.testing.assert_allclose(cam.project(np.array([[0.0, 0.0, 0.0]]))[0], [0.5, 0.5])
+    up = cam.project(np.array([[0.0, 0.5, 0.0]]))[0]
+    right = cam.project(np.array([[0.5, 0.0, 0.0]]))[0]
+    assert up[1] < 0.5 and right[0] > 0.5  # +y is up on screen, +x right
+    # the GL matrix agrees with the OpenCV projection
+    p = np.array([0.3, -0.2, 0.1])
+    clip = cam.view_proj_gl() @ np.append(p, 1.0)
+    ndc = clip[:2] / clip[3]
+    uv = cam.project(p[None])[0]
+    np.testing.assert_allclose([(ndc[0] + 1) / 2, (1 - ndc[1]) / 2], uv, atol=1e-12)
+    assert isinstance(MaterialPoint(0, np.ones(3) / 3), MaterialPoint)
