@@ -55,7 +55,7 @@ class UIConfig:
     host: str = "127.0.0.1"
     """bind address of all three servers (loopback by default)"""
     port: int = 8080
-    """3D view; the pattern view is port + 1, the combined page port + 2"""
+    """the combined page (what users open); the 3D view is port + 1, the pattern view port + 2"""
     export_dir: Path = Path("out/exports")
     max_fps: float = 60.0
     """upper bound on drape pushes to the browser [1/s]"""
@@ -102,7 +102,7 @@ class CoutureUI:
     def start(self) -> str:
         """Start the servers and the render thread; returns the page URL."""
         c = self.config
-        self.server3d = viser.ViserServer(host=c.host, port=c.port, label="couture 3D", verbose=False)
+        self.server3d = viser.ViserServer(host=c.host, port=c.port + 1, label="couture 3D", verbose=False)
         self.server2d = viser.ViserServer(host=c.host, port=self.server3d.get_port() + 1, label="couture pattern",
                                           verbose=False)
         for s in (self.server3d, self.server2d):
@@ -115,8 +115,7 @@ class CoutureUI:
         self.view2d.on_click = self._on_pattern_click
         self._build_controls()
         self._build_tools()
-        self.page = PageServer(c.host, self.server3d.get_port() + 2, self.server3d.get_port(),
-                               self.server2d.get_port())
+        self.page = PageServer(c.host, c.port, self.server3d.get_port(), self.server2d.get_port())
         self._started = True
         self._threads = [threading.Thread(target=self._render_loop, name="couture-render", daemon=True),
                          threading.Thread(target=self._design_loop, name="couture-draft", daemon=True)]

@@ -46,6 +46,7 @@ class UIAdapter:
         self.edit_pub = bus.publisher("edit", EditMsg)
         self._own_edits: set[str] = set()
         self._drape_gen: dict[str, int] = {}
+        self.seen_pattern = False
         ui.on_design_changed = self.publish_design
         ui.on_edit = self.publish_edit
         ui.on_solver_selected = lambda name: log.info("solver selected: %s", name)
@@ -71,6 +72,7 @@ class UIAdapter:
 
     # -- in (Zenoh threads: store and return)
     def on_pattern(self, msg: PatternMsg) -> None:
+        self.seen_pattern = True
         if msg.source == self.name:
             return
         self.ui.generation = max(self.ui.generation, msg.generation)
@@ -107,7 +109,10 @@ def main(config: Config) -> None:
             adapter = UIAdapter(node, ui, config.name)
             log.info("couture UI at %s (3D %s, pattern %s)", url, ui.url3d, ui.url2d)
             print(f"couture UI: {url}", flush=True)
-            if config.publish_initial:
+            # a session already under way (the pattern topic keeps its last
+            # sample for late joiners) wins over the default design
+            node.stop_flag.wait(1.0)
+            if config.publish_initial and not adapter.seen_pattern:
                 adapter.publish_design(ui.design)
             node.run()
         finally:
