@@ -24,7 +24,7 @@ from couture.bus import DEFAULT_ENDPOINT, BusConfig, open_session
 from couture.mesh import GarmentMesh
 from schemas.convert import mesh_to_msg
 from schemas.design import Design
-from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, SolveRequestMsg, SolveResultMsg
+from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, SolveRequestMsg, SolveResultMsg, StatusMsg
 
 EXPECTED_PRODUCERS = {
     "mesh": "remesher",
@@ -61,6 +61,8 @@ class Client:
         self._cond = threading.Condition()
         self._drapes: dict[str, list[DrapeMsg]] = {"coarse": [], "fine": [], "predicted": []}
         self._meshes: dict[str, MeshMsg] = {}
+        self.status: dict[str, StatusMsg] = {}
+        """latest status message per node name"""
         self._seen_generation = 0
         self.bus = None
 
@@ -73,6 +75,7 @@ class Client:
             self.bus.subscribe("drape/*", self._on_drape, DrapeMsg)
             self.bus.subscribe("mesh/*", self._on_mesh, MeshMsg)
             self.bus.subscribe("pattern", self._on_pattern, PatternMsg)
+            self.bus.subscribe("status/*", self._on_status, StatusMsg)
         except BaseException:
             self.bus.close()
             raise
@@ -94,11 +97,19 @@ class Client:
             self._meshes[msg.level] = msg
             self._cond.notify_all()
 
+    def _on_status(self, msg: StatusMsg) -> None:
+        self.status[msg.node] = msg
+
     def _on_pattern(self, msg: PatternMsg) -> None:
         with self._cond:
             self._seen_generation = max(self._seen_generation, msg.generation)
 
     # -- API
+    def drapes(self, kind: str = "fine") -> list[DrapeMsg]:
+        """The drapes of one kind received so far (the last 64), oldest first."""
+        with self._cond:
+            return list(self._drapes[kind])
+
     def live_nodes(self, timeout: float = 1.0) -> list[str]:
         return self.bus.live_nodes(timeout=timeout)
 

@@ -26,6 +26,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -122,10 +123,24 @@ class Supervisor:
         self.bus.watch_nodes(self._on_liveliness, history=False)
         for c in self.children.values():
             self._spawn(c)
+        # restarts happen however the supervisor is used (``couture up``,
+        # ``couture drape``, golden runs, tests)
+        self._monitor_stop = threading.Event()
+        self._monitor = threading.Thread(target=self._watch, name="supervisor", daemon=True)
+        self._monitor.start()
         return self
+
+    def _watch(self) -> None:
+        while not self._monitor_stop.wait(0.1):
+            try:
+                self.poll()
+            except Exception:
+                log.exception("supervisor poll failed")
 
     def __exit__(self, *exc: object) -> None:
         try:
+            self._monitor_stop.set()
+            self._monitor.join(timeout=2.0)
             self.stop_children()
         finally:
             if self.bus is not None:
@@ -168,9 +183,8 @@ class Supervisor:
                 self._spawn(c)
 
     def run(self, stop: StopFlag) -> None:
-        """Supervise until ``stop`` is set (SIGINT/SIGTERM)."""
-        while not stop.wait(0.1):
-            self.poll()
+        """Block until ``stop`` is set (SIGINT/SIGTERM); the monitor thread restarts nodes."""
+        stop.wait()
 
     def stop_children(self) -> None:
         first = [c for c in self.children.values() if not c.spec.stop_last]

@@ -52,6 +52,9 @@ EXPRESS_TOPICS = ("edit", "drape/predicted")
 # node resumes from the latest pattern, meshes and drapes (zenoh-ext advanced
 # pub/sub with history).
 STATE_TOPICS = ("pattern", "mesh/coarse", "mesh/fine", "drape/coarse", "drape/fine")
+STATE_HISTORY = {"pattern": 8}
+"""samples kept per state topic (default 1): a few patterns, so a late joiner
+also sees the last *valid* design when the newest one was rejected"""
 """latency-critical: sent without batching"""
 
 RESERVED_SOLVER_NAMES = ("request", "result")
@@ -208,7 +211,7 @@ class TypedPublisher(Generic[M]):
         self._probe = None
         if topic in STATE_TOPICS:
             self._pub = zenoh.ext.declare_advanced_publisher(
-                bus.zenoh, self.key, cache=zenoh.ext.CacheConfig(max_samples=1), publisher_detection=True, **opts)
+                bus.zenoh, self.key, cache=zenoh.ext.CacheConfig(max_samples=STATE_HISTORY.get(topic, 1)), publisher_detection=True, **opts)
             # AdvancedPublisher has no matching status: a plain publisher that
             # never sends answers "does anyone subscribe here?"
             self._probe = bus.zenoh.declare_publisher(self.key)
@@ -333,7 +336,8 @@ class Bus:
         if history:  # late joiners get each state topic's last sample
             sub = zenoh.ext.declare_advanced_subscriber(
                 self.zenoh, self.key(topic), on_sample,
-                history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1))
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True,
+                                                max_samples=max(STATE_HISTORY.get(topic, 1), 1)))
         else:
             sub = self.zenoh.declare_subscriber(self.key(topic), on_sample)
         self._closeables.append(sub)

@@ -82,34 +82,41 @@ def main(config: Config) -> None:
             service.run(should_abort=should_abort, on_progress=on_progress, on_level=on_level,
                         progress_period_s=config.progress_period_s)
 
-        def on_pattern(msg: PatternMsg) -> None:
-            if msg.generation < state["generation"]:
-                return
-            state["generation"] = msg.generation
-            state["abort"] = True  # a new design supersedes the running solve
+        designs: dict[int, object] = {}  # pattern generation -> design (recent ones)
 
-            def job() -> None:
-                if service.set_design(msg.design) and service.ready():
-                    worker.submit("solve", solve_job)
-            worker.submit("design", job)
+        def design_for(generation: int):
+            older = [g for g in designs if g <= generation]
+            return designs[max(older)] if older else None
+
+        def on_pattern(msg: PatternMsg) -> None:
+            # Only remember it: a pattern the remesher rejects must not stop the
+            # current solve; valid patterns come back as new meshes.
+            designs[msg.generation] = msg.design
+            for g in sorted(designs)[:-16]:
+                designs.pop(g, None)
 
         def on_mesh(msg: MeshMsg) -> None:
-            if msg.generation < state["generation"]:
-                node.count("stale_meshes")
-                return
             lm = service.levels.get(msg.level)
             if lm is not None and lm.mesh_generation == msg.mesh_generation:
                 return  # a Ψ re-send of the mesh we hold
+            if lm is not None and msg.mesh_generation < lm.mesh_generation:
+                node.count("stale_meshes")
+                return
             mesh = msg_to_mesh(msg)
             prolong = None
             if msg.fine_parent_tri is not None and msg.fine_bary is not None:
                 prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
 
             def job() -> None:
+                design = design_for(msg.generation)
+                if design is None:
+                    node.error(f"mesh/{msg.level} of generation {msg.generation} arrived before any pattern; waiting")
+                    return
+                service.set_design(design)
                 service.set_mesh(msg.level, mesh, msg.mesh_generation, prolong)
                 if service.ready():
                     worker.submit("solve", solve_job)
-            state["abort"] = True
+            state["abort"] = True  # a new mesh supersedes the running solve
             worker.submit(f"mesh/{msg.level}", job)
 
         def on_edit(msg: EditMsg) -> None:

@@ -73,9 +73,9 @@ class UIAdapter:
     # -- in (Zenoh threads: store and return)
     def on_pattern(self, msg: PatternMsg) -> None:
         self.seen_pattern = True
-        if msg.source == self.name:
-            return
-        self.ui.generation = max(self.ui.generation, msg.generation)
+        if msg.source == self.name or msg.generation < self.ui.generation:
+            return  # our own echo, or an older design (history can arrive out of order)
+        self.ui.generation = msg.generation
         self.ui.set_design(msg.design)
 
     def on_edit(self, msg: EditMsg) -> None:
