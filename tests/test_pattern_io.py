@@ -97,26 +97,23 @@ def _panel_points(panel, step=0.025):
     o = panel.outline
     lo, hi = o.min(0), o.max(0)
     g = np.stack(np.meshgrid(np.arange(lo[0], hi[0], step), np.arange(lo[1], hi[1], step)), -1).reshape(-1, 2)
-    return np.vstack([o[::2], g[point_in_polygon(g, o)]])
+    g = g[point_in_polygon(g, o)]
+    # interior only: panels are meant to touch along their seams
+    from scipy.spatial import cKDTree
+    return g[cKDTree(o).query(g)[0] > 0.02]
 
 
 @pytest.mark.parametrize("kind", sorted(SLOPERS))
-def test_placement_outside_body(body, kind):
-    """Placed panel points lie outside the mannequin with margin (nearest body
-    vertex, signed by its normal: the mesh is watertight and ~1 cm fine), and
-    panels of one garment do not overlap grossly."""
-    V, N, tree = body
-    margin = 0.01
+def test_placement_panels_do_not_overlap(body, kind):
+    """Panels of one garment do not overlap grossly where they are placed.
+    (Clearance from the body is checked with the exact SDF, per sloper, in
+    tests/test_placement_seams.py.)"""
     for params in ({}, {o.name: o.max for o in SLOPERS[kind].options if o.name in ("length", "sleeve_length", "flare")}):
         p = draft(Design(sloper=Sloper(kind=kind, params=params)))
         clouds = {}
         for pn in p.panels:
             assert pn.placement is not None
             X = place(pn, _panel_points(pn))
-            d, i = tree.query(X)
-            side = np.einsum("ij,ij->i", X - V[i], N[i])
-            assert np.all(side > 0), (pn.name, X[side <= 0][:3])
-            assert d.min() > margin, (pn.name, d.min())
             clouds[pn.name] = X
         from scipy.spatial import cKDTree
         names = list(clouds)

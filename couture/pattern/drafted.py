@@ -41,6 +41,12 @@ class Segment:
 class Placement:
     """Initial 3D placement of a panel around the body (Meng 2010 / Volino 2005).
 
+    kind 'wrap' (what the slopers use): rows at material heights ``rows_y``;
+    on row i, material x lies at arc length ``x - rows_x0[i]`` (from theta =
+    0, toward theta = pi/2) along the closed polar curve ``rows_radius[i]``
+    (radii at theta_k = 2 pi k / K) about the axis, at ``rows_axial[i]`` along
+    it from ``origin``; rows are interpolated linearly (exact mapping:
+    ``couture.pattern.placement.place``).
     kind 'cylinder': material x wraps around the vertical axis through
     ``origin`` at ``radius`` starting at angle ``angle0`` [rad] (angle grows
     with x / radius), material y maps to world y (up) shifted by origin[1].
@@ -72,6 +78,14 @@ class Placement:
     taper: float = 0.0
     """radius growth per metre of material -y (a cone: flared skirts); the
     radius at material y is ``radius - taper * y``"""
+    rows_y: np.ndarray | None = None
+    """[m] material y of each row, increasing, shape (m,), wrap only"""
+    rows_axial: np.ndarray | None = None
+    """[m] position of each row along the axis from ``origin``, shape (m,), wrap only"""
+    rows_x0: np.ndarray | None = None
+    """[m] material x at arc length 0 (theta = 0) of each row, shape (m,), wrap only"""
+    rows_radius: np.ndarray | None = None
+    """[m] polar radius of each row's cross-section curve, shape (m, K), wrap only"""
 
 
 @dataclass

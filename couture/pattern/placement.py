@@ -1,12 +1,23 @@
 """Initial 3D placement of panels around the mannequin (Meng 2010 / Volino 2005 §3.4.2).
 
-Each panel is wrapped around a cylinder or cone (:class:`Placement` kind
-'cylinder'): material x becomes arc length around the axis, material y runs
-along the axis. The axis may be tilted (sleeves along the arm, trouser legs
-along the leg) and the radius may grow linearly with distance down the axis
-(``taper``), so a flared panel keeps its width and neighbours do not overlap.
-Radii are chosen from the mannequin's measured radius profile plus a margin,
-so every panel starts outside the body.
+Panels of one ring (a skirt's gores, a bodice's front and back, a sleeve, a
+trouser leg) are wrapped around one axis (vertical for the torso, tilted for
+sleeves and trouser legs): material y runs along the axis, material x along
+the ring's cross-section curve at that height, by arc length, so every
+horizontal line of a panel is laid without stretch (placement kind 'wrap').
+
+The cross-section at each height is the body's own section there (the convex
+hull of the body part in a slab about the axis, :mod:`couture.pattern.sections`)
+grown by the ring's clearance margin, and grown further, uniformly, until its
+perimeter equals the garment's girth at that height (the summed widths of the
+ring's panels): then the panels tile the curve edge to edge and the seams
+between them start closed. Where the garment is smaller than the grown body
+section (a waistband at the waist, whose ease is smaller than the clearance
+asks for), the curve keeps its clearance and the shortfall is shared equally
+by the seams (or, for a ring with ``gap_at``, left as one opening there: a
+trouser leg's half ring, open where the other leg's panels join it).
+
+The older kinds stay: 'cylinder' (a cone: radius + taper) and 'plane'.
 """
 
 from __future__ import annotations
@@ -17,6 +28,9 @@ from couture.pattern.drafted import Panel, Placement
 
 UP = np.array([0.0, 1.0, 0.0])
 FRONT = np.array([0.0, 0.0, 1.0])
+ROW_SPACING = 0.01
+"""[m] material-y spacing of a wrap placement's rows"""
+_UPSAMPLE = 4  # polar samples per section-table angle: a smoother curve to wrap on
 
 
 def frame(pl: Placement) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -29,9 +43,42 @@ def frame(pl: Placement) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return a, f, np.cross(a, f)
 
 
+def _curve(radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closed polygon (K + 1, 2) in (f, b) coordinates of polar radii (K,) at
+    theta_k = 2 pi k / K, and its cumulative arc length (K + 1,)."""
+    K = len(radius)
+    th = 2 * np.pi * np.arange(K + 1) / K
+    r = np.append(radius, radius[0])
+    P = np.column_stack([r * np.cos(th), r * np.sin(th)])
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+    return P, s
+
+
+def _upsample(radius: np.ndarray, factor: int = _UPSAMPLE) -> np.ndarray:
+    """Polar radii resampled factor times finer (periodic linear interpolation)."""
+    radius = np.atleast_2d(radius)
+    K = radius.shape[1]
+    th = np.arange(K * factor) / factor
+    k0 = np.floor(th).astype(int) % K
+    w = th - np.floor(th)
+    return (1 - w) * radius[:, k0] + w * radius[:, (k0 + 1) % K]
+
+
+def _wrap_row(pl: Placement, row: int, x: np.ndarray) -> np.ndarray:
+    """World positions (m, 3) of material x (m,) on row ``row`` of a wrap placement."""
+    a, f, b = frame(pl)
+    P, s = _curve(pl.rows_radius[row])
+    u = np.mod(x - pl.rows_x0[row], s[-1])
+    k = np.clip(np.searchsorted(s, u, side="right") - 1, 0, len(s) - 2)
+    t = ((u - s[k]) / np.maximum(s[k + 1] - s[k], 1e-300))[:, None]
+    q = (1 - t) * P[k] + t * P[k + 1]
+    return np.asarray(pl.origin, float) + pl.rows_axial[row] * a + q[:, :1] * f + q[:, 1:] * b
+
+
 def place(panel: Panel, points2d: np.ndarray) -> np.ndarray:
     """Map material points (m, 2) of ``panel`` to world positions (m, 3) [m].
 
+    'wrap': see the module docstring; rows are interpolated linearly in y.
     'cylinder': r = radius + taper * (-y) (clamped >= 1 mm), theta = angle0 +
     x / r (or -x / r with ``flip``), world = origin + y / sqrt(1 + taper^2) * a
     + r (cos theta f + sin theta b), with a the axis (default world up), f the
@@ -45,8 +92,17 @@ def place(panel: Panel, points2d: np.ndarray) -> np.ndarray:
         return np.column_stack([P, np.zeros(len(P))])
     if pl.kind == "plane":
         return pl.origin + P[:, :1] * np.asarray(pl.u) + P[:, 1:2] * np.asarray(pl.v)
+    if pl.kind == "wrap":
+        ys = pl.rows_y
+        j = np.clip(np.searchsorted(ys, P[:, 1], side="right") - 1, 0, len(ys) - 2)
+        w = np.clip((P[:, 1] - ys[j]) / (ys[j + 1] - ys[j]), 0.0, 1.0)[:, None]
+        out = np.empty((len(P), 3))
+        for row in np.unique(j):
+            m = j == row
+            out[m] = (1 - w[m]) * _wrap_row(pl, row, P[m, 0]) + w[m] * _wrap_row(pl, row + 1, P[m, 0])
+        return out
     if pl.kind != "cylinder":
-        raise ValueError(f"placement kind {pl.kind!r} of panel {panel.name!r} is not 'cylinder' or 'plane'")
+        raise ValueError(f"placement kind {pl.kind!r} of panel {panel.name!r} is not 'wrap', 'cylinder' or 'plane'")
     a, f, b = frame(pl)
     taper = getattr(pl, "taper", 0.0)
     r = np.maximum(pl.radius - taper * P[:, 1], 1e-3)
@@ -57,45 +113,120 @@ def place(panel: Panel, points2d: np.ndarray) -> np.ndarray:
             + r[:, None] * (np.cos(th)[:, None] * f + np.sin(th)[:, None] * b))
 
 
+def _extents(outline: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Leftmost and rightmost material x of a closed outline on each horizontal
+    line y (clamped into the outline's y range), shape (len(ys),) each."""
+    q0, q1 = outline, np.roll(outline, -1, axis=0)
+    lo_y, hi_y = outline[:, 1].min(), outline[:, 1].max()
+    eps = 1e-6 * max(hi_y - lo_y, 1e-3)
+    y = np.clip(ys, lo_y + eps, hi_y - eps)[:, None]
+    ya, yb = q0[None, :, 1], q1[None, :, 1]
+    cross = (np.minimum(ya, yb) <= y) & (np.maximum(ya, yb) > y)
+    t = (y - ya) / np.where(yb != ya, yb - ya, 1.0)
+    x = q0[None, :, 0] + t * (q1[None, :, 0] - q0[None, :, 0])
+    lo = np.where(cross, x, np.inf).min(axis=1)
+    hi = np.where(cross, x, -np.inf).max(axis=1)
+    return lo, hi
+
+
+def _grow_to(base: np.ndarray, girth: float, lo: float = 0.0) -> np.ndarray:
+    """``base`` polar radii (K,) grown (or shrunk, by at most ``-lo``) uniformly
+    so the curve's perimeter is as close to ``girth`` [m] as that allows (a
+    few secant steps; perimeter is ~2 pi per metre of growth)."""
+    p0 = _curve(base)[1][-1]
+    d = (girth - p0) / (2 * np.pi)
+    if d <= lo:
+        return base + lo
+    for _ in range(3):
+        p = _curve(base + d)[1][-1]
+        d += (girth - p) / (2 * np.pi)
+    return base + d
+
+
 def fit_ring(ring, panels: dict[str, Panel]) -> dict[str, Placement]:
-    """Cone radius and taper so that, at every material height, the ring clears
-    the body by ``ring.margin`` and the panels' summed widths fit around it."""
-    pts = [panels[n].outline for n in ring.panels]
-    ys = np.concatenate([p[:, 1] for p in pts])
-    y_lo, y_hi = ys.min(), ys.max()
-    bins = np.linspace(y_lo, y_hi, max(2, int(np.ceil((y_hi - y_lo) / 0.02)) + 1))
-    centres = 0.5 * (bins[1:] + bins[:-1])
-    width = np.zeros(len(centres))
-    for p in pts:
-        # interpolate the outline densely so narrow bins see it
-        q = np.vstack([p, p[:1]])
-        t = np.linspace(0, 1, 8, endpoint=False)
-        dense = (q[:-1, None, :] * (1 - t[None, :, None]) + q[1:, None, :] * t[None, :, None]).reshape(-1, 2)
-        k = np.clip(np.searchsorted(bins, dense[:, 1]) - 1, 0, len(centres) - 1)
-        lo = np.full(len(centres), np.inf)
-        hi = np.full(len(centres), -np.inf)
-        np.minimum.at(lo, k, dense[:, 0])
-        np.maximum.at(hi, k, dense[:, 0])
-        width += np.where(np.isfinite(lo), hi - lo, 0.0)
-    need = np.maximum(ring.body_radius(centres) + ring.margin, width / (2 * np.pi) * 1.02)
-    need = np.append(need, ring.body_radius(np.array([y_hi]))[0] + ring.margin)
-    yc = np.append(centres, y_hi)
-    drop = y_hi - yc
-    # r(y) = top + taper * (y_hi - y) >= need(y), taper >= 0; pick the cone of
-    # smallest mean radius among a fine grid of tapers (cheap, robust)
-    tapers = np.linspace(0.0, 3.0, 601)
-    tops = (need[None, :] - tapers[:, None] * drop[None, :]).max(axis=1)
-    mean_r = tops + tapers * 0.5 * (y_hi - y_lo)
-    best = int(np.argmin(mean_r))
-    taper, top = float(tapers[best]), float(tops[best])
-    radius = min(top + taper * y_hi, ring.max_radius)
+    """'wrap' placements of a ring's panels: the body section plus margin,
+    grown to the garment's girth, with the panels tiling it (module docstring)."""
+    from couture.pattern.sections import sections
+
+    outlines = [np.asarray(panels[n].outline, float) for n in ring.panels]
+    y_lo = min(o[:, 1].min() for o in outlines)
+    y_hi = max(o[:, 1].max() for o in outlines)
+    n_rows = max(2, int(np.ceil((y_hi - y_lo) / ROW_SPACING)) + 1)
+    ys = np.linspace(y_lo, y_hi, n_rows)
+    ext = [_extents(o, ys) for o in outlines]
+    spans = [((o[:, 1].min() <= ys) & (ys <= o[:, 1].max())) for o in outlines]
+    widths = np.array([np.where(sp, hi - lo, 0.0) for (lo, hi), sp in zip(ext, spans)])  # (panels, rows)
+    girth = widths.sum(axis=0)
+
+    origin = np.asarray(ring.origin, float)
+    a = UP if ring.axis is None else np.asarray(ring.axis, float) / np.linalg.norm(ring.axis)
+    f = FRONT if ring.ref is None else np.asarray(ring.ref, float)
+    f = f - (f @ a) * a
+    f = f / np.linalg.norm(f)
+    b = np.cross(a, f)
+    sec = sections()[ring.section] if getattr(ring, "section", None) else None
+    K = 64
+    if sec is not None:
+        K = sec.radius.shape[1]
+        # the table's theta = 0 may differ from the ring's: resample at the ring's angles
+        phi = np.arctan2(sec.ref @ b, sec.ref @ f)
+        t_off = float((origin - sec.origin) @ sec.axis)
+
+    def base_radii(axial: np.ndarray) -> np.ndarray:
+        """Body radii (rows, K) about the ring's axis at its axial coordinates:
+        the section table, at least the ring's ``body_radius`` circle."""
+        circle = None
+        if ring.body_radius is not None:
+            circle = np.repeat(np.asarray(ring.body_radius(axial), float)[:, None], K, axis=1)
+        if sec is None:
+            return circle
+        R = sec.radii(axial + t_off)
+        # theta_ring = theta_sec - phi
+        th = (2 * np.pi * np.arange(K) / K + phi) % (2 * np.pi) / (2 * np.pi) * K
+        k0 = np.floor(th).astype(int) % K
+        w = th - np.floor(th)
+        R = (1 - w) * R[:, k0] + w * R[:, (k0 + 1) % K]
+        empty = R.max(axis=1) <= 0
+        if empty.any():
+            R[empty] = R[~empty].max(axis=0)
+        return R if circle is None else np.maximum(R, circle)
+
+    axial = ys.copy()
+    for _ in range(2):
+        # a garment tighter than body + margin (a waistband) gives up part of
+        # its margin, down to min_margin, before its seams open
+        base = _upsample(base_radii(axial) + ring.margin)
+        lo = ring.min_margin - ring.margin if getattr(ring, "gap_at", None) is None else 0.0
+        R = np.array([_grow_to(base[i], girth[i], lo) for i in range(n_rows)])
+        # keep material y lengths along the meridian: the axis shortens where the radius changes
+        rbar = R.mean(axis=1)
+        dy = np.diff(ys)
+        dh = np.sqrt(np.maximum(dy**2 - np.diff(rbar) ** 2, (0.5 * dy) ** 2))
+        axial = y_hi - np.concatenate([np.cumsum(dh[::-1])[::-1], [0.0]])
+
+    x0 = np.zeros((len(ring.panels), n_rows))
+    n = len(ring.panels)
+    for i in range(n_rows):
+        P, s = _curve(R[i])
+        perim = s[-1]
+        spare = max(perim - girth[i], 0.0)
+
+        def arc_at(theta):
+            return float(np.interp(np.mod(theta, 2 * np.pi), 2 * np.pi * np.arange(len(s)) / (len(s) - 1), s))
+
+        w_i = widths[:, i]
+        if getattr(ring, "gap_at", None) is None:
+            start = arc_at(ring.angles[0]) - 0.5 * w_i[0] - 0.5 * spare / n
+            starts = start + np.concatenate([[0.0], np.cumsum(w_i[:-1] + spare / n)]) + 0.5 * spare / n
+        else:
+            start = arc_at(ring.gap_at) + 0.5 * spare
+            starts = start + np.concatenate([[0.0], np.cumsum(w_i[:-1])])
+        for p in range(n):
+            x0[p, i] = ext[p][0][i] - starts[p]
+
     out = {}
-    for name, ang in zip(ring.panels, ring.angles):
-        p = panels[name].outline
-        xm = 0.5 * (p[:, 0].min() + p[:, 0].max())
-        r_mid = max(radius - taper * 0.5 * (p[:, 1].min() + p[:, 1].max()), 1e-3)
-        out[name] = Placement("cylinder", np.asarray(ring.origin, float).copy(), radius=radius,
-                              angle0=float(ang - xm / r_mid),
-                              axis=None if ring.axis is None else np.asarray(ring.axis, float),
-                              ref=None if ring.ref is None else np.asarray(ring.ref, float), taper=taper)
+    for p, name in enumerate(ring.panels):
+        out[name] = Placement("wrap", origin.copy(), axis=None if ring.axis is None else a.copy(),
+                              ref=None if ring.ref is None else f.copy(),
+                              rows_y=ys.copy(), rows_axial=axial.copy(), rows_x0=x0[p].copy(), rows_radius=R.copy())
     return out

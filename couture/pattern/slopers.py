@@ -50,9 +50,18 @@ class Ring:
     ref: np.ndarray | None = None
     """theta = 0 direction; None: world +z (front)"""
     body_radius: Callable[[np.ndarray], np.ndarray] | None = None
-    """material y -> body radius about the axis [m]"""
-    margin: float = 0.025
-    max_radius: float = 1.0
+    """axial coordinate [m] -> body radius about the axis [m]: a circle the
+    placement clears (at least), or where there is no ``section``, exactly"""
+    margin: float = 0.015
+    """[m] clearance from the body section"""
+    min_margin: float = 0.007
+    """[m] clearance a garment tighter than body + margin may go down to"""
+    section: str | None = None
+    """body section table about this axis (``couture.pattern.sections``); None:
+    a circle of ``body_radius``"""
+    gap_at: float | None = None
+    """[rad] where the ring stays open (a trouser leg's half ring above the
+    crotch); None: a closed ring, any shortfall shared by its seams"""
 
 
 @dataclass
@@ -157,8 +166,8 @@ def draft_skirt(p: dict[str, float]) -> SloperDraft:
     names = ["front", "back"] if n == 2 else [f"gore{i}" for i in range(n)]
     panels = skirt_panels(names, p, p["waist_girth"] + p["waist_ease"], p["hip_girth"] + p["hip_ease"], p["length"])
     seams = [(names[i], "side_right", names[(i + 1) % n], "side_left") for i in range(n)]
-    ring = Ring(names, [2 * np.pi * i / n for i in range(n)], np.array([0.0, M.WAIST_Y + 0.01, M.TORSO_AXIS_Z]),
-                body_radius=_torso_body_radius(M.WAIST_Y + 0.01))
+    ring = Ring(names, [2 * np.pi * i / n for i in range(n)], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]),
+                section="torso")
     return SloperDraft(panels, seams, [ring])
 
 
@@ -228,7 +237,7 @@ def draft_dress(p: dict[str, float]) -> SloperDraft:
                                      {"segment": f"armhole_{s}", "position": 0.35, "width": p["bust_dart_width"],
                                       "length": 0.3 * (p["waist_to_shoulder"] - p["waist_to_underarm"])}))
     ring = Ring(["front", "back"], [0.0, np.pi], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]),
-                body_radius=_torso_body_radius(M.WAIST_Y))
+                section="torso")
     return SloperDraft(panels, seams, [ring], darts)
 
 
@@ -286,7 +295,7 @@ def draft_shirt(p: dict[str, float]) -> SloperDraft:
              ("sleeve_left", "underarm_right", "sleeve_left", "underarm_left"),
              ("sleeve_right", "underarm_right", "sleeve_right", "underarm_left")]
     rings = [Ring(["front", "back"], [0.0, np.pi], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]),
-                  body_radius=_torso_body_radius(M.WAIST_Y))]
+                  section="torso")]
     for name, sign in (("sleeve_left", 1.0), ("sleeve_right", -1.0)):
         a, f = _arm_frame(sign)
         b = np.cross(a, f)
@@ -303,7 +312,7 @@ def draft_shirt(p: dict[str, float]) -> SloperDraft:
         # cap top a little down the arm, clear of the shoulder
         origin = M.LEFT_ARM_SHOULDER * np.array([sign, 1.0, 1.0]) - 0.03 * a
         rings.append(Ring([name], [0.0], origin, axis=a, ref=f,
-                          body_radius=lambda ym: np.full(np.shape(ym), M.ARM_RADIUS), margin=0.02))
+                          body_radius=_cap_radius, section="left_arm" if sign > 0 else "right_arm"))
     return SloperDraft(panels, seams, rings)
 
 
@@ -372,13 +381,23 @@ def draft_trousers(p: dict[str, float]) -> SloperDraft:
         origin = top + a * ((M.WAIST_Y - top[1]) / a[1])
         f = np.array([0.0, 0.0, 1.0]) - a[2] * a
         f /= np.linalg.norm(f)
-        # panel centres: front turned a little outward, back likewise, so the
-        # centre edges of the two legs do not overlap at the crotch
-        off = 0.25
-        rings.append(Ring([f"front_{leg}", f"back_{leg}"],
-                          [sign * off, np.pi - sign * off], origin, axis=a, ref=f,
-                          body_radius=_leg_body_radius, margin=0.025))
+        # one leg's front and back panels wrap its leg (with its half of the
+        # pelvis above the crotch) starting from the inner side, where the ring
+        # stays open: there the centre seams meet the other leg's panels.
+        # Material +x runs with the wrap angle: the left leg goes inner-front ->
+        # side -> back, the right leg inner-back -> side -> front.
+        b = np.cross(a, f)
+        inner = np.array([-sign, 0.0, 0.0])
+        order = [f"front_{leg}", f"back_{leg}"] if sign > 0 else [f"back_{leg}", f"front_{leg}"]
+        rings.append(Ring(order, [0.0, np.pi], origin, axis=a, ref=f, margin=0.02,
+                          section=f"{leg}_leg", gap_at=float(np.arctan2(inner @ b, inner @ f))))
     return SloperDraft(panels, seams, rings)
+
+
+def _cap_radius(ym):
+    """A sleeve cap's clearance about the arm axis near the shoulder, where the
+    arm section table (arm vertices only) does not see the shoulder."""
+    return np.where(np.asarray(ym) > -0.10, M.ARM_RADIUS, 0.0)
 
 
 def _leg_body_radius(ym):

@@ -224,14 +224,21 @@ def _point_inside(loop: np.ndarray) -> np.ndarray:
     return V[t[np.argmax(area)]].mean(axis=0)
 
 
+def _segment_ends(panel: Panel, loop: int) -> np.ndarray:
+    """Polyline vertices that must stay mesh vertices on loop ``loop`` (0: the
+    outline, h + 1: hole h): the ends of the segments lying on it (seams start
+    and stop exactly there)."""
+    ends = [v for s in panel.segments if s.hole == loop - 1 for v in (s.start, s.stop)]
+    return np.asarray(ends, np.int64)
+
+
 def _triangulate_panel(panel: Panel, h: float, area_bound: float, hole_seeds: list[np.ndarray]):
     """Mesh one panel. Returns (V, tris, per-loop (chain_vertex, edge, next, t) in output indices)."""
     loops = [np.asarray(panel.outline, np.float64)] + [np.asarray(hh, np.float64) for hh in panel.holes]
-    must = [s.start for s in panel.segments] + [s.stop for s in panel.segments]
     pts, segs, seg_loop, seg_edge, seg_next, seg_t0 = [], [], [], [], [], []
     off = 0
     for li, P in enumerate(loops):
-        kept = _kept_vertices(P, h, np.asarray(must if li == 0 else [], np.int64))
+        kept = _kept_vertices(P, h, _segment_ends(panel, li))
         q, e, nx, t = _subdivide_loop(P, h, kept)
         c = len(q)
         pts.append(q)
@@ -355,10 +362,9 @@ def mesh_pattern(
     # slopers and fixtures); the boundary count is known before triangulating
     nb_est = 0
     for p in drafted.panels:
-        must = np.asarray([s.start for s in p.segments] + [s.stop for s in p.segments], np.int64)
         for li, P in enumerate([p.outline] + list(p.holes)):
             P = np.asarray(P, np.float64)
-            nb_est += len(_subdivide_loop(P, h, _kept_vertices(P, h, must if li == 0 else must[:0]))[0])
+            nb_est += len(_subdivide_loop(P, h, _kept_vertices(P, h, _segment_ends(p, li)))[0])
     want_interior = max(target_vertices - nb_est, 0.25 * target_vertices)
     area_bound = _INTERIOR_PER_AREA * total_area / want_interior
     parts = _mesh_panels(drafted, h, area_bound, hole_seeds)

@@ -1,6 +1,7 @@
 """Seam springs between mesh boundaries (SC §7, "emitting" and "receiving" vertices).
 
-For each :class:`~couture.pattern.drafted.SeamSpec` both segments are walked
+For each :class:`~couture.pattern.drafted.SeamSpec` both segments (on a
+panel's outline, or on a hole: the two sides of a diamond dart) are walked
 by arc length in the rest pattern, normalized to [0, 1] (so unequal lengths
 map proportionally: the longer side gathers or pleats), with segment b
 walked backwards when ``reverse``. Every mesh vertex of the *emitting* side
@@ -39,14 +40,25 @@ def _segment(panel: Panel, name: str):
 
 
 def segment_chain(result, panel_index: int, panel: Panel, seg_name: str) -> np.ndarray:
-    """Mesh vertices along an outline segment, from its start polyline vertex to
-    its stop vertex (wrapping), inserted boundary points included, shape (c,), int32."""
+    """Mesh vertices along a segment, from its start polyline vertex to its stop
+    vertex (wrapping), inserted boundary points included, shape (c,), int32.
+
+    An outline segment walks the panel's outline loop; a hole segment
+    (``Segment.hole = h``, the sides of a diamond dart) walks the loop of
+    hole h (``BoundaryLoop.loop = h + 1``), in the hole's drafted (clockwise)
+    order."""
     seg = _segment(panel, seg_name)
-    loop = next(lp for lp in result.loops if lp.panel == panel_index and lp.loop == 0)
+    li = seg.hole + 1
+    loop = next((lp for lp in result.loops if lp.panel == panel_index and lp.loop == li), None)
+    if loop is None:
+        raise KeyError(f"segment {panel.name}/{seg_name} lies on loop {li}, which the mesh does not have")
     k = loop.n_poly
     start, stop = seg.start % k, seg.stop % k
     if start == stop:
         raise ValueError(f"segment {panel.name}/{seg_name} is empty (start == stop)")
+    for v in (start, stop):
+        if loop.poly_to_mesh[v] < 0:
+            raise ValueError(f"segment {panel.name}/{seg_name}: end vertex {v} was not kept in the mesh")
     c = len(loop.chain)
     j0 = int(np.flatnonzero((loop.chain_edge == start) & (loop.chain_t == 0.0))[0])
     j1 = int(np.flatnonzero((loop.chain_edge == stop) & (loop.chain_t == 0.0))[0])

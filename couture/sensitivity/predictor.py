@@ -1,0 +1,224 @@
+"""The sensitivity node's state machine as a plain class (SC §7.2).
+
+    new equilibrium  -> set_equilibrium(model, x_eq, d)   (cheap; marks stale)
+    idle time        -> refactor()                         (worker thread)
+    press(psi)       -> response columns S (n, 3, 2); the cache restarts
+                        with the anchor sample (d0, x_eq, S)
+    drag(d)          -> Prediction(x, method, error_estimate)
+    solver result during a drag -> add_sample(d_m, x_m)   (worker thread:
+                        refactor at x_m, columns there, new GMLS sample)
+    release(d)       -> warm start for the solver
+
+d is the pointer motion of the active edit [m of pattern space] (or a sloper
+parameter change), and the rest shape follows it linearly:
+X(d) = X_0 + Ψ (d - d_0).
+"""
+
+from __future__ import annotations
+
+import copy
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .factor import FactorInfo, SensitivityFactor
+from .gmls import GMLSCache
+
+METHODS = ("linear", "gmls", "mls")
+
+
+@dataclass
+class Prediction:
+    x: np.ndarray
+    """predicted drape [m], shape (n, 3), float64"""
+    d: np.ndarray
+    """design point (2,)"""
+    method: str
+    """'linear' | 'gmls' | 'mls' | 'none' (no sensitivity yet: the equilibrium itself)"""
+    error_estimate: float
+    """relative force residual of x at the edited rest shape X(d) (NaN when not computed)"""
+    predict_s: float
+    """wall time of the prediction itself [s]"""
+    residual_s: float = 0.0
+    """wall time of the error estimate [s]"""
+    samples: int = 0
+    """samples in the cache"""
+
+
+def default_model_at(model, X: np.ndarray):
+    """A model like ``model`` with rest positions X (n, 2), without mutating it.
+
+    couture.cloth.ClothModel: a shallow copy with ``set_rest_positions`` (it
+    replaces, never mutates, the rest-dependent arrays); its in-place stiffness
+    buffer is copied so the two never share state.
+    """
+    for name in ("with_rest", "with_rest_positions"):
+        if hasattr(model, name):
+            return getattr(model, name)(X)
+    for name in ("set_rest_positions", "set_rest"):
+        if hasattr(model, name):
+            m = copy.copy(model)
+            if hasattr(m, "_K"):
+                m._K = m._K.copy()
+            getattr(m, name)(X)
+            return m
+    raise AttributeError("model cannot change its rest positions (no set_rest_positions); pass model_at")
+
+
+class Predictor:
+    """Sensitivity predictor for one mesh generation at a time. Thread-safe:
+    ``refactor`` and ``add_sample`` may run in a worker thread while ``drag``
+    runs at pointer rate."""
+
+    def __init__(self, *, method: str = "gmls", bend_floor: bool = True, cache_bytes: int = 64 << 20,
+                 cache_samples: int = 16, eps2: float = 1e-3, d_scale: float = 1.0, max_active: int = 6,
+                 dtype=np.float32, error_estimate: bool = True, model_at=default_model_at,
+                 factor_kwargs: dict | None = None):
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}")
+        self.method = method
+        self.bend_floor = bend_floor
+        self.cache_kw = dict(max_bytes=cache_bytes, max_samples=cache_samples, eps2=eps2, d_scale=d_scale,
+                             max_active=max_active, dtype=dtype)
+        self.error_estimate = error_estimate
+        self.model_at = model_at
+        self.factor_kwargs = factor_kwargs or {}
+        self._lock = threading.RLock()
+        self.model = None
+        self.x_eq = None
+        self.d_eq = np.zeros(2)
+        self.factor: SensitivityFactor | None = None
+        self._factor_for = None
+        self.cache: GMLSCache | None = None
+        self.psi = None
+        self.d0 = np.zeros(2)
+        self.S0 = None
+        self.last: Prediction | None = None
+        self._edit_lock = threading.RLock()
+        self._edit_model = None
+        self._edit_d = None
+
+    # -- equilibrium and factorization -------------------------------------
+    def set_equilibrium(self, model, x_eq: np.ndarray, d=None) -> None:
+        """A new equilibrium (new mesh or a converged solve): remember it; the
+        factorization is stale until ``refactor`` runs."""
+        with self._lock:
+            if self.model is not model or self.cache is None or self.cache.n != model.n:
+                self.cache = GMLSCache(model.n, **self.cache_kw)
+            self.model = model
+            self.x_eq = np.array(x_eq, dtype=np.float64, copy=True)
+            self.d_eq = np.zeros(2) if d is None else np.asarray(d, dtype=np.float64).reshape(2)
+            self._edit_model = None
+
+    @property
+    def stale(self) -> bool:
+        return self.factor is None or self._factor_for is not self.x_eq
+
+    def refactor(self) -> FactorInfo:
+        """Factor the stiffness at the latest equilibrium (idle time; worker thread)."""
+        with self._lock:
+            model, x = self.model, self.x_eq
+        f = SensitivityFactor(model, x, bend_floor=self.bend_floor, **self.factor_kwargs)
+        with self._lock:
+            if self.x_eq is x:
+                self.factor, self._factor_for = f, x
+        return f.info
+
+    # -- edit phases --------------------------------------------------------
+    def press(self, psi: np.ndarray, d0=None) -> np.ndarray:
+        """Pointer pressed on an element whose pointer Jacobian is psi (n, 2, 2)
+        (a sloper parameter: dX/dg in column 0, column 1 zero): the two response
+        columns S (n, 3, 2); restarts the cache at (d0, x_eq, S). d0 defaults to
+        the design point given with the equilibrium."""
+        if self.stale:
+            self.refactor()
+        with self._lock:
+            f = self.factor
+            self.psi = np.asarray(psi, dtype=np.float64)
+            self.d0 = self.d_eq.copy() if d0 is None else np.asarray(d0, dtype=np.float64).reshape(2)
+            X = getattr(self.model, "X", None)
+            self.X0 = np.array(X if X is not None else self.model.mesh.X, dtype=np.float64)
+        S = f.columns(self.psi)
+        with self._lock:
+            self.S0 = S
+            self.cache.clear()
+            self.cache.add(self.d0, f.x_eq, S, anchor=True)
+            self._edit_model = None
+        return S
+
+    def rest_at(self, d) -> np.ndarray:
+        """Rest positions X(d) = X_0 + Ψ (d - d0), shape (n, 2)."""
+        dd = np.asarray(d, dtype=np.float64).reshape(2) - self.d0
+        return self.X0 + self.psi @ dd
+
+    def model_for(self, d):
+        """The cloth model at the edited rest shape X(d): one private copy per
+        press, its rest positions updated in place (a rest update costs about
+        as much as a force evaluation; see the benchmark)."""
+        d = np.asarray(d, dtype=np.float64).reshape(2)
+        with self._edit_lock:
+            if self._edit_model is None:
+                self._edit_model = self.model_at(self.model, self.rest_at(d))
+                self._edit_d = d.copy()
+            elif not np.array_equal(d, self._edit_d):
+                setter = getattr(self._edit_model, "set_rest_positions", None) or getattr(self._edit_model, "set_rest", None)
+                if setter is None:
+                    self._edit_model = self.model_at(self.model, self.rest_at(d))
+                else:
+                    setter(self.rest_at(d))
+                self._edit_d = d.copy()
+            return self._edit_model
+
+    def error_of(self, x: np.ndarray, d) -> float:
+        """Relative force residual of a predicted drape x at the rest shape X(d)
+        (the prediction's error estimate). At 10k vertices it costs tens of ms:
+        the node computes it for the latest prediction in idle time."""
+        with self._edit_lock:
+            return float(self.model_for(d).relative_residual(x))
+
+    def drag(self, d, method: str | None = None, error_estimate: bool | None = None) -> Prediction:
+        """Prediction at pointer position d (2,) by 'gmls' (default), 'mls' or
+        'linear'; with the error estimate unless disabled (``error_estimate``
+        here or in the constructor; see :meth:`error_of` for its cost)."""
+        method = method or self.method
+        d = np.asarray(d, dtype=np.float64).reshape(2)
+        t0 = time.perf_counter()
+        with self._lock:
+            cache = self.cache
+            if cache is None or not len(cache):
+                x, used = self.x_eq.copy(), "none"
+            elif method == "linear":
+                x, used = cache.predict_linear(d), "linear"
+            else:
+                x, used = cache.predict(d, method), method
+            nsamp = len(cache) if cache is not None else 0
+        t1 = time.perf_counter()
+        err, tr = float("nan"), 0.0
+        if (self.error_estimate if error_estimate is None else error_estimate) and self.psi is not None:
+            err = self.error_of(x, d)
+            tr = time.perf_counter() - t1
+        p = Prediction(x=x, d=d, method=used, error_estimate=err, predict_s=t1 - t0, residual_s=tr, samples=nsamp)
+        self.last = p
+        return p
+
+    def add_sample(self, d_m, x_m: np.ndarray, *, sensitivity: bool = True) -> FactorInfo | None:
+        """A solver equilibrium x_m at design point d_m during a drag: refactor
+        there, compute its columns and add a first-order sample (zeroth order
+        only with ``sensitivity=False``). Idle time / worker thread."""
+        d_m = np.asarray(d_m, dtype=np.float64).reshape(2)
+        x_m = np.asarray(x_m, dtype=np.float64)
+        info, S = None, None
+        if sensitivity:
+            model_m = self.model_at(self.model, self.rest_at(d_m))
+            f = SensitivityFactor(model_m, x_m, bend_floor=self.bend_floor, **self.factor_kwargs)
+            S = f.columns(self.psi)
+            info = f.info
+        with self._lock:
+            self.cache.add(d_m, x_m, S)
+        return info
+
+    def release(self, d) -> np.ndarray:
+        """Warm start for the solver at the final pointer position d: the prediction there."""
+        return self.drag(d, error_estimate=False).x
