@@ -64,14 +64,18 @@ def main(config: Config) -> None:
             worker.submit("pattern", job)
 
         def on_edit(msg: EditMsg) -> None:
-            if msg.phase != "press" or not msg.element or msg.picked_vertex >= 0:
-                return  # 3D drags use the sensitivity node's parameter columns, not Ψ
+            if msg.phase != "press":
+                return
+            # a 3D tug drives a sloper parameter: its Ψ is dX/dg (column 0)
+            element = f"param:{msg.param}" if msg.picked_vertex >= 0 and msg.param else msg.element
+            if not element:
+                return
 
             def job() -> None:
                 try:
-                    psis = service.psi_for(msg.element)
+                    psis = service.psi_for(element)
                 except (PatternError, RuntimeError, KeyError) as e:
-                    node.error(f"edit {msg.edit_id}: no Ψ for {msg.element!r}: {e}")
+                    node.error(f"edit {msg.edit_id}: no Ψ for {element!r}: {e}")
                     return
                 for level, st in service.levels.items():
                     up = MeshUpdate(level, st.mesh, st.mesh_generation, "psi")
