@@ -183,7 +183,12 @@ def test_bus_adapter_roundtrip(tmp_path):
             ui.gui_params[name].value = float(ui.gui_params[name].value) + 0.01
             ui._on_param(name)
             assert wait_for(lambda: any(isinstance(m, PatternMsg) and m.source == "ui" for m in patterns))
-            h = ui.view2d.handles[0]
+            from couture.ui.handles import Handle
+
+            # a handle is a couture.pattern element; d is in its convention (param: the option change)
+            h = Handle("param:length", "gore0", 0, "param")
+            length0 = float(ui.design.sloper.params.get("length", 0.60))
+            n_patterns = len(patterns)
             ui._on_handle_drag("press", h, np.zeros(2))
             ui._on_handle_drag("drag", h, np.array([0.01, 0.0]))
             ui._on_handle_drag("release", h, np.array([0.02, 0.0]))
@@ -191,5 +196,9 @@ def test_bus_adapter_roundtrip(tmp_path):
             assert [e.phase for e in edits] == ["press", "drag", "release"]
             assert isinstance(edits[-1], EditMsg) and edits[-1].element == h.element
             np.testing.assert_allclose(edits[-1].d.numpy(), [0.02, 0.0])
+            # the release commits apply_edit(design, element, d): one new pattern, one generation more
+            assert wait_for(lambda: len(patterns) == n_patterns + 1)
+            assert patterns[-1].design.sloper.params["length"] == pytest.approx(length0 + 0.02)
+            assert patterns[-1].generation == patterns[-2].generation + 1
     finally:
         ui.stop()

@@ -36,7 +36,8 @@ from couture.ui import colormaps, export
 from couture.ui.drape_view import DrapeView
 from couture.ui.geometry import CameraState, MaterialPoint
 from couture.ui.page import PageServer
-from couture.ui.pattern_view import Handle, PatternView
+from couture.ui.handles import Handle, plan_handles
+from couture.ui.pattern_view import PatternView
 from couture.ui.state import (
     FABRIC_PRESETS,
     DrapeFrame,
@@ -76,12 +77,19 @@ class CoutureUI:
         self.on_edit: Callable[[dict], None] | None = None
         self.on_solver_selected: Callable[[str], None] | None = None
         self.on_record: Callable[[bool], None] | None = None
+        """cb(on); the adapter answers with :meth:`set_record_note`"""
         self.on_pick: Callable[[MaterialPoint], None] | None = None
 
         self.meshes: dict[str, GarmentMesh] = {}
         self.pattern: DraftedPattern | None = None
         self.nodes: dict[str, NodeInfo] = {}
         self.on_screen: DrapeFrame | None = None
+        self.selected_solver = "any"
+        """solver node whose drapes are shown ('any': every solver's)"""
+        self.handles_for: Design | None = None
+        """the design the pattern view's handles were planned for"""
+        self.notes: list[str] = []
+        """extra status lines from the adapter (e.g. predictions off)"""
         self.frames_pushed = 0
         self.last_edit_stamp = 0.0
         self._drape_slot: LatestSlot[DrapeFrame] = LatestSlot()
@@ -166,9 +174,13 @@ class CoutureUI:
             self.view2d.set_mesh(mesh)
 
     def show_drape(self, x: np.ndarray, level: str, method: str = "", residual: float = float("nan"),
-                   error_estimate: float | None = None, *, generation: int = 0, tag: Any = None) -> None:
+                   error_estimate: float | None = None, *, generation: int = 0, tag: Any = None,
+                   solver: str = "", converged: bool | None = None, diagnosis: str = "", final: bool = True,
+                   edit_id: str = "") -> None:
         """Store a drape to render; returns at once (the newest one wins)."""
-        self._drape_slot.put(DrapeFrame(np.asarray(x), level, method, residual, error_estimate, generation, tag))
+        self._drape_slot.put(DrapeFrame(np.asarray(x), level, method, residual, error_estimate, generation, tag,
+                                        solver=solver, converged=converged, diagnosis=diagnosis, final=final,
+                                        edit_id=edit_id))
 
     def show_pattern(self, pattern: DraftedPattern) -> None:
         self.pattern = pattern
@@ -195,6 +207,22 @@ class CoutureUI:
         info.seen = time.time()
         self._status_dirty.set()
 
+    def set_status_notes(self, notes: list[str]) -> None:
+        """Extra lines under the status table (the adapter's view of the pipeline)."""
+        if notes != self.notes:
+            self.notes = list(notes)
+            self._status_dirty.set()
+
+    def set_record_note(self, text: str, on: bool | None = None) -> None:
+        """What the record toggle did (file path, or why not); ``on`` moves the toggle."""
+        self.gui_record_note.content = text
+        if on is not None and bool(self.gui_record.value) != on:
+            self._suppress += 1
+            try:
+                self.gui_record.value = on
+            finally:
+                self._suppress -= 1
+
     def set_design(self, design: Design, *, emit: bool = False) -> None:
         """Adopt a design (from the bus or a replay): controls follow, nothing
         is published unless ``emit``."""
@@ -213,7 +241,7 @@ class CoutureUI:
         el = str(edit.get("element", ""))
         for i, h in enumerate(self.view2d.handles):
             if h.element == el:
-                self.view2d.preview(h, np.asarray(edit.get("d", (0.0, 0.0)), np.float64), i)
+                self.view2d.preview(h, np.asarray(edit.get("d", (0.0, 0.0)), np.float64).reshape(2), i)
                 return
 
     # ------------------------------------------------------------------ render side
@@ -260,13 +288,11 @@ class CoutureUI:
         import html
         import json
 
-        err = "" if frame.error_estimate is None else f" · err {frame.error_estimate:.2g}"
-        res = "" if not math.isfinite(frame.residual) else f" · residual {frame.residual:.2g}"
         tag = html.escape(json.dumps(frame.tag)) if frame.tag is not None else ""
         self.gui_frame.content = (
             f'<div id="couture-frame" data-seq="{self.frames_pushed}" data-tag="{tag}" '
-            f'style="font-size:12px">on screen: <b>{frame.level}</b>'
-            f'{" (" + frame.method + ")" if frame.method else ""}{res}{err}</div>'
+            f'data-level="{frame.level}" data-generation="{frame.generation}" '
+            f'style="font-size:12px">on screen: {html.escape(describe_frame(frame))}</div>'
         )
         scale = self.view3d.scale
         self.gui_legend.content = scale.legend_html() if scale is not None else ""
@@ -281,35 +307,49 @@ class CoutureUI:
             except ImportError:
                 continue
             try:
-                self.show_pattern(draft(design))
+                pattern = draft(design)
+                self.show_pattern(pattern)
             except Exception as e:
                 log.warning("drafting the design failed: %s", e)
+                continue
+            if self._design_slot.peek() is not design:
+                continue  # a newer design is waiting: plan its handles instead
+            try:
+                handle_set = plan_handles(design, pattern)
+            except Exception:
+                log.exception("planning the pattern handles failed")
+                continue
+            if self._design_slot.peek() is design and self.pattern is pattern:
+                self.view2d.set_handles(handle_set)
+                self.handles_for = design
 
     def _refresh_status(self) -> None:
         rows = ["| node | state | rates |", "|---|---|---|"]
         for n in sorted(self.nodes):
             info = self.nodes[n]
             state = (info.state or "alive") if info.alive else "**DEAD**"
-            rates = ", ".join(f"{k} {v:.3g}/s" for k, v in sorted(info.rates.items())[:3])
+            if info.alive and info.last_error:
+                state += f" (last error: {info.last_error[:80]})"
+            rates = ", ".join(f"{k} {v:.3g}/s" for k, v in useful_rates(info.rates)[:3])
             rows.append(f"| {n} | {state} | {rates} |")
         if len(rows) == 2:
             rows.append("| (none) | | |")
         f = self.on_screen
         if f is not None:
             age = time.time() - f.received
-            what = {"predicted": "prediction", "coarse": "coarse solve", "fine": "fine solve"}.get(f.level, f.level)
-            err = "" if f.error_estimate is None else f", error estimate {f.error_estimate:.2g}"
-            res = "" if not math.isfinite(f.residual) else f", residual {f.residual:.2g}"
-            rows += ["", f"**On screen**: {what}{' (' + f.method + ')' if f.method else ''}{res}{err}, {age:.1f} s old"]
+            rows += ["", f"**On screen**: {describe_frame(f)}, {age:.1f} s old"]
+        if self.notes:
+            rows += [""] + [f"- {n}" for n in self.notes]
         self.gui_status.content = "\n".join(rows)
-        solvers = sorted(n for n, i in self.nodes.items() if i.alive and (i.kind == "solver" or "solver" in n))
+        solvers = sorted(n for n, i in self.nodes.items() if i.alive and (i.kind == "solver" or n.startswith("solver")))
         opts = ("any", *solvers)
+        if self.selected_solver not in opts:
+            opts = (*opts, self.selected_solver)  # a chosen solver that died stays chosen (its last drape stays)
         if tuple(self.gui_solver.options) != opts:
-            cur = self.gui_solver.value
             self._suppress += 1
             try:
                 self.gui_solver.options = opts
-                self.gui_solver.value = cur if cur in opts else "any"
+                self.gui_solver.value = self.selected_solver
             finally:
                 self._suppress -= 1
 
@@ -337,10 +377,13 @@ class CoutureUI:
                 h.on_update(lambda _: self._on_fabric())
         with gui.add_folder("Simulation", expand_by_default=False):
             self.gui_solver = gui.add_dropdown("solver", ("any",), initial_value="any")
-            self.gui_solver.on_update(lambda _: self._emit(self.on_solver_selected, self.gui_solver.value))
+            self.gui_solver.on_update(lambda _: self._on_solver())
             r = self.design.resolution
-            self.gui_coarse = gui.add_slider("coarse vertices", 200, 5000, 100, r.coarse_vertices)
-            self.gui_fine = gui.add_slider("fine vertices", 1000, 40000, 500, r.fine_vertices)
+            # small meshes (tests, slow machines) are legitimate: the range widens to the value
+            self.gui_coarse = gui.add_slider("coarse vertices", min(100, r.coarse_vertices), 5000, 100,
+                                             min(r.coarse_vertices, 5000))
+            self.gui_fine = gui.add_slider("fine vertices", min(300, r.fine_vertices), 40000, 100,
+                                           min(r.fine_vertices, 40000))
             for h in (self.gui_coarse, self.gui_fine):
                 h.on_update(lambda _: self._on_resolution())
             self.gui_field = gui.add_dropdown("colour map", colormaps.FIELDS, initial_value="none")
@@ -352,6 +395,7 @@ class CoutureUI:
         with gui.add_folder("Session", expand_by_default=False):
             self.gui_record = gui.add_checkbox("record", False)
             self.gui_record.on_update(lambda _: self._emit(self.on_record, bool(self.gui_record.value)))
+            self.gui_record_note = gui.add_markdown("")
             self.gui_exp_pattern = gui.add_button_group("export pattern", export.PATTERN_FORMATS)
             self.gui_exp_pattern.on_click(lambda ev: self._export_pattern(ev.target.value, ev.client))
             self.gui_exp_drape = gui.add_button_group("export drape", export.DRAPE_FORMATS)
@@ -375,7 +419,8 @@ class CoutureUI:
                 self.gui_params[o.name] = h
         names = tuple(o.name for o in opts) or ("(none)",)
         self.gui_tug_param.options = names
-        self.gui_tug_param.value = names[0]
+        # a style option by default (the body measurements come first in the tables)
+        self.gui_tug_param.value = "length" if "length" in names else names[0]
 
     def _sync_controls(self) -> None:
         d = self.design
@@ -391,8 +436,8 @@ class CoutureUI:
         self.gui_preset.value = f.name if f.name in FABRIC_PRESETS else "custom"
         self.gui_bend.value, self.gui_stretch.value, self.gui_density.value = (
             f.bend_stiffness, f.stretch_stiffness, f.area_density)
-        self.gui_coarse.value = d.resolution.coarse_vertices
-        self.gui_fine.value = d.resolution.fine_vertices
+        for h, v in ((self.gui_coarse, d.resolution.coarse_vertices), (self.gui_fine, d.resolution.fine_vertices)):
+            h.value = min(max(v, h.min), h.max)
 
     # -- control callbacks: every user action becomes a design change or an edit
 
@@ -407,6 +452,17 @@ class CoutureUI:
         self.generation += 1
         self._design_slot.put(self.design)
         self._emit(self.on_design_changed, self.design)
+
+    def _on_solver(self) -> None:
+        if self._suppress:
+            return
+        self.select_solver(str(self.gui_solver.value))
+
+    def select_solver(self, name: str) -> None:
+        """Show only ``name``'s drapes ('any': every solver's); predictions always show."""
+        self.selected_solver = name
+        self._status_dirty.set()
+        self._emit(self.on_solver_selected, name)
 
     def _on_sloper_kind(self) -> None:
         if self._suppress:
@@ -509,10 +565,12 @@ class CoutureUI:
         gui = self.server2d.gui
         with gui.add_folder("Tools"):
             self.gui_tool_help = gui.add_markdown("Drag a handle to edit; click the cloth to find it in 3D.")
+            b_curve = gui.add_button("Add a curve point")
             b_dart = gui.add_button("Draw a dart")
             b_sew = gui.add_button("Sew two segments")
             b_sym = gui.add_button("Mark symmetry")
             b_cancel = gui.add_button("Cancel tool")
+            b_curve.on_click(lambda _: self.arm_tool("curve"))
             b_dart.on_click(lambda _: self.arm_tool("dart"))
             b_sew.on_click(lambda _: self.arm_tool("seam"))
             b_sym.on_click(lambda _: self.arm_tool("symmetry"))
@@ -521,6 +579,7 @@ class CoutureUI:
             self.gui_show_mesh.on_update(lambda _: self.view2d.set_show_mesh(bool(self.gui_show_mesh.value)))
 
     _TOOL_HELP = {
+        "curve": "**Curve point**: click the boundary where the new control point goes; then drag it.",
         "dart": "**Dart**: click the boundary where the dart goes.",
         "seam": "**Sew**: click the first segment, then the second.",
         "symmetry": "**Symmetry**: click the segment the panel is mirrored about.",
@@ -548,7 +607,17 @@ class CoutureUI:
             self.gui_tool_help.content = f"**Sew**: first is {picks[0][0]}:{picks[0][1]}; click the second segment."
             return
         n = next(self._stroke_ids)
-        if tool == "dart":
+        if tool == "curve":
+            # couture.pattern's curve stroke: control points [s, dn] (fraction
+            # along the segment, normal displacement [m]); a new point starts at dn = 0
+            pn, sn, t = picks[0]
+            sid = f"curve-{pn}-{sn}"
+            old = next((s for s in self.design.strokes
+                        if s.kind == "curve" and s.panel == pn and s.params.get("segment") == sn), None)
+            pts = [list(p) for p in (old.params["points"] if old else [])]
+            pts = sorted(pts + [[round(min(max(t, 0.02), 0.98), 4), 0.0]])
+            stroke = Stroke(id=old.id if old else sid, kind="curve", panel=pn, params={"segment": sn, "points": pts})
+        elif tool == "dart":
             pn, sn, t = picks[0]
             # couture.pattern's boundary dart: position along the segment (0..1), width, length [m]
             stroke = Stroke(id=f"dart-{n}", kind="dart", panel=pn,
@@ -574,33 +643,54 @@ class CoutureUI:
     # ------------------------------------------------------------------ drags → edits
 
     def _on_handle_drag(self, phase: str, handle: Handle, d: np.ndarray) -> None:
+        """A handle drag: ``d`` is already in the element's pointer convention
+        (couture.ui.handles). press/drag/release go out as edits; the release
+        commits ``apply_edit(design, element, d)`` as one new design."""
         if phase == "press":
             self._edit_id = uuid.uuid4().hex[:12]
         self.last_edit_stamp = time.time()
+        kind = handle.kind
+        dofs = [handle.element.split(":", 1)[1]] if kind == "param" else ["x", "y"]
         self._emit(self.on_edit, {
-            "edit_id": self._edit_id, "phase": phase, "element": handle.element, "dofs": ["x", "y"],
-            "d": [float(d[0]), float(d[1])], "param": "",
+            "edit_id": self._edit_id, "phase": phase, "element": handle.element, "dofs": dofs,
+            "d": [float(d[0]), float(d[1])], "param": handle.element[6:] if kind == "param" else "",
         })
-        if phase == "release" and np.linalg.norm(d) > 0 and handle.at == "mid" and self.pattern is not None:
-            # commit: a mid-curve drag becomes couture.pattern's curve stroke,
-            # a normal displacement dn [m] at s = 0.5 of the segment (corners
-            # are sloper geometry: their drags are edits only)
-            n_out = self.view2d.outward_normal(handle)
-            sid = f"curve-{handle.panel}-{handle.segment}"
-            old = next((s for s in self.design.strokes if s.id == sid), None)
-            dn = (float(old.params["points"][0][1]) if old else 0.0) + float(d @ n_out)
-            self.add_stroke(Stroke(id=sid, kind="curve", panel=handle.panel,
-                                   params={"segment": handle.segment, "points": [[0.5, round(dn, 6)]]}))
+        if phase != "release":
+            return
+        if not np.any(d):
+            if self.pattern is not None:  # nothing moved: put the outline back
+                self.view2d.set_pattern(self.pattern, list(self.design.strokes))
+                self._design_slot.put(self.design)
+            return
+        from couture.pattern import apply_edit
+
+        try:
+            new = apply_edit(self.design, handle.element, d)
+        except Exception as e:  # e.g. a value outside the option's range
+            log.warning("edit %s by %s rejected: %s", handle.element, d, e)
+            self.gui_tool_help.content = f"**Edit rejected**: {e}"
+            self._design_slot.put(self.design)
+            return
+        self.design = new
+        self._suppress += 1
+        try:
+            self._sync_controls()
+        finally:
+            self._suppress -= 1
+        self._emit_design()
 
     def _on_tug(self, phase: str, mp: MaterialPoint, vertex: int, p0: tuple[float, float],
                 p: tuple[float, float], cam: CameraState | None) -> None:
         if phase == "press":
             self._edit_id = uuid.uuid4().hex[:12]
         self.last_edit_stamp = time.time()
-        param = self.gui_tug_param.value
+        # the sensitivity node maps the screen drag to this sloper option and,
+        # on release, publishes the new design itself: the UI publishes nothing
+        param = "" if self.gui_tug_param.value == "(none)" else str(self.gui_tug_param.value)
         edit = {
-            "edit_id": self._edit_id, "phase": phase, "element": f"sloper:{param}", "dofs": [param],
-            "d": [p[0] - p0[0], p[1] - p0[1]], "param": "" if param == "(none)" else param,
+            "edit_id": self._edit_id, "phase": phase, "element": f"param:{param}" if param else "",
+            "dofs": [param] if param else [],
+            "d": [p[0] - p0[0], p[1] - p0[1]], "param": param,
             "picked_vertex": int(vertex), "picked_tri": int(mp.tri), "picked_bary": [float(b) for b in mp.bary],
         }
         if cam is not None:
@@ -611,6 +701,35 @@ class CoutureUI:
     def _on_pick_3d(self, mp: MaterialPoint) -> None:
         self.view2d.show_marker(mp)
         self._emit(self.on_pick, mp)
+
+
+NOISY_RATE_PREFIXES = ("sent/status", "recv/status")
+
+
+def useful_rates(rates: dict[str, float]) -> list[tuple[str, float]]:
+    """A node's rates worth showing: not the status heartbeat's own traffic, busiest first."""
+    keep = [(k, v) for k, v in rates.items() if not k.startswith(NOISY_RATE_PREFIXES) and v > 0]
+    return sorted(keep, key=lambda kv: -kv[1])
+
+
+def describe_frame(f: DrapeFrame) -> str:
+    """Which method produced the drape on screen, in words."""
+    if f.level == "predicted":
+        err = "error estimate pending" if f.error_estimate is None else f"error estimate {f.error_estimate:.2g}"
+        return f"prediction ({f.method or '?'}), {err}, generation {f.generation}"
+    who = f.solver or f.method or "solver"
+    if f.solver and f.method and f.method not in f.solver:
+        who += f" ({f.method})"
+    res = "" if not math.isfinite(f.residual) else f", residual {f.residual:.2g}"
+    if not f.final:
+        state = "solving"
+    elif f.converged:
+        state = "converged"
+    elif f.converged is None:
+        state = "final"
+    else:
+        state = "not converged" + (f": {f.diagnosis}" if f.diagnosis else "")
+    return f"{f.level} solve by {who}{res}, {state}, generation {f.generation}"
 
 
 def _nice_step(span: float) -> float:

@@ -3,8 +3,9 @@ looking down -z, +y up on screen), on its own viser server.
 
 Drawn: panel fills and outlines, seam segments colour-matched pairwise, dart
 strokes, mirrored outlines of panels marked symmetric, the mesh (optional),
-draggable control points (a corner and a mid-curve handle per segment), and
-the marker of the material point picked in either view.
+draggable handles, one per editable element of the design (sloper options,
+curve control points, darts: see :mod:`couture.ui.handles`), and the marker
+of the material point picked in either view.
 
 Panels that overlap in their own coordinates are laid out side by side for
 display (a per-panel offset); every pointer delta is a difference and so is
@@ -23,6 +24,7 @@ import viser
 from couture.mesh import GarmentMesh
 from couture.pattern.drafted import DraftedPattern, Panel
 from couture.ui.geometry import MaterialPoint, locate_in_pattern
+from couture.ui.handles import Handle, HandleSet
 
 SEAM_PALETTE = np.array([
     (228, 26, 28), (55, 126, 184), (77, 175, 74), (152, 78, 163), (255, 127, 0),
@@ -30,23 +32,8 @@ SEAM_PALETTE = np.array([
 ], np.uint8)
 PANEL_FILL = (236, 228, 214)
 OUTLINE = (40, 40, 40)
-HANDLE_CORNER = (20, 90, 200)
-HANDLE_MID = (20, 160, 120)
+HANDLE_COLORS = {"param": (20, 90, 200), "cv": (20, 160, 120), "dart": (200, 0, 120), "hole": (200, 0, 120)}
 HANDLE_ACTIVE = (240, 160, 0)
-
-
-@dataclass
-class Handle:
-    """A draggable control point of the pattern."""
-
-    element: str
-    """'<panel>:<segment>:start' (corner) or '<panel>:<segment>:mid' (curve handle)"""
-    panel: str
-    segment: str
-    at: str
-    """'start' or 'mid'"""
-    vertex: int
-    """outline vertex index the handle sits on"""
 
 
 def segment_indices(panel: Panel, seg_name: str) -> np.ndarray:
@@ -54,51 +41,6 @@ def segment_indices(panel: Panel, seg_name: str) -> np.ndarray:
     k = len(panel.outline)
     n = (seg.stop - seg.start) % k
     return (seg.start + np.arange(n + 1)) % k
-
-
-def handles_of(pattern: DraftedPattern) -> list[Handle]:
-    out = []
-    for p in pattern.panels:
-        for s in p.segments:
-            idx = segment_indices(p, s.name)
-            out.append(Handle(f"{p.name}:{s.name}:start", p.name, s.name, "start", int(idx[0])))
-            if len(idx) > 2:
-                out.append(Handle(f"{p.name}:{s.name}:mid", p.name, s.name, "mid", int(idx[len(idx) // 2])))
-    return out
-
-
-def handle_weights(panel: Panel, handle: Handle) -> np.ndarray:
-    """How much each outline vertex follows the handle (SC §6 boundary
-    interpolation, piecewise linear in arc length): a corner drags its two
-    adjacent segments with a hat that falls to 0 at their far ends; a mid
-    handle drags its own segment with a hat that is 0 at its ends."""
-    k = len(panel.outline)
-    w = np.zeros(k)
-    P = panel.outline
-
-    def hat(idx: np.ndarray, peak: int) -> None:
-        seg = P[idx]
-        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(seg, axis=0), axis=1))])
-        pk = s[peak]
-        up = s / pk if pk > 0 else np.ones_like(s)
-        down = (s[-1] - s) / (s[-1] - pk) if s[-1] > pk else np.ones_like(s)
-        val = np.where(np.arange(len(idx)) <= peak, up, down)
-        w[idx] = np.maximum(w[idx], np.clip(val, 0, 1))
-
-    if handle.at == "mid":
-        idx = segment_indices(panel, handle.segment)
-        hat(idx, len(idx) // 2)
-        return w
-    segs = panel.segments
-    i = next(j for j, s in enumerate(segs) if s.name == handle.segment)
-    this = segment_indices(panel, segs[i].name)
-    hat(this, 0)
-    prev = next((s for s in segs if s.stop % k == handle.vertex and s.name != handle.segment), None)
-    if prev is not None:
-        idx = segment_indices(panel, prev.name)
-        hat(idx, len(idx) - 1)
-    w[handle.vertex] = 1.0
-    return w
 
 
 def mirror_about(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -136,12 +78,14 @@ class PatternView:
         self.mesh: GarmentMesh | None = None
         self.offsets: dict[str, np.ndarray] = {}
         self.handles: list[Handle] = []
+        self.handle_set: HandleSet = HandleSet([], {})
         self.symmetric: dict[str, str] = {}
         """panel -> segment it is mirrored about (symmetry strokes)"""
         self.darts: list[dict] = []
         self.show_mesh_edges = False
         self.on_handle_drag: Callable[[str, Handle, np.ndarray], None] | None = None
-        """cb(phase 'press'|'drag'|'release', handle, d [m] since press)"""
+        """cb(phase 'press'|'drag'|'release', handle, d): d is the edit's d for the
+        pointer motion since press (Handle.element_delta)"""
         self.on_click: Callable[[np.ndarray, str | None], None] | None = None
         """cb(point in panel coordinates [m], panel name or None)"""
         self._lock = threading.RLock()
@@ -163,7 +107,7 @@ class PatternView:
         with self._lock:
             self.pattern = pattern
             self.offsets = layout_offsets(pattern)
-            self.handles = handles_of(pattern)
+            self.handles, self.handle_set = [], HandleSet([], {})
             self.symmetric, self.darts = {}, []
             for st in strokes or []:
                 if st.kind == "symmetry" and st.panel:
@@ -172,6 +116,15 @@ class PatternView:
                     self.darts.append({"panel": st.panel, **st.params})
             self._draw_all()
             self.frame_camera()
+
+    def set_handles(self, handle_set: HandleSet) -> None:
+        """The design's editable elements (planned for the pattern on screen)."""
+        with self._lock:
+            if self._drag is not None:
+                return  # keep the gesture's handles until it ends
+            self.handle_set = handle_set
+            self.handles = list(handle_set.handles)
+            self._draw_handles()
 
     def set_mesh(self, mesh: GarmentMesh) -> None:
         with self._lock:
@@ -298,17 +251,26 @@ class PatternView:
         pos = []
         for h in self.handles:
             p = self.pattern.panel(h.panel)
-            pos.append(np.append(self.display(h.panel, p.outline[h.vertex]), 0.003))
+            pos.append(np.append(self.display(h.panel, h.rest_position(p)), 0.003))
         return np.array(pos).reshape(-1, 3)
 
     def _draw_handles(self) -> None:
         import trimesh
 
-        if not self.handles:
+        sc = self.server.scene
+        for name in [n for n in self._line_nodes if n.startswith("/handles")]:
+            sc.remove_by_name(name)
+            del self._line_nodes[name]
+        self._handle_node = None
+        if not self.handles or self.pattern is None:
             return
         ico = trimesh.creation.icosphere(subdivisions=1, radius=0.012)
         pos = self.handle_positions()
-        cols = np.array([HANDLE_CORNER if h.at == "start" else HANDLE_MID for h in self.handles], np.uint8)
+        cols = np.array([HANDLE_COLORS.get(h.kind, HANDLE_ACTIVE) for h in self.handles], np.uint8)
+        for i, (h, p) in enumerate(zip(self.handles, pos)):
+            name = f"/handles_labels/{i}"
+            self._line_nodes[name] = sc.add_label(name, h.label, position=(float(p[0]) + 0.015, float(p[1]), 0.004),
+                                                  anchor="center-left", font_screen_scale=0.6)
         name = "/handles"
         self._handle_node = self.server.scene.add_batched_meshes_simple(
             name, np.asarray(ico.vertices, np.float32), np.asarray(ico.faces, np.uint32),
@@ -422,33 +384,35 @@ class PatternView:
             drag = self._drag
             if drag is None:
                 return
-            d = np.asarray(event.end_position[:2], np.float64) - drag["grab"]
+            d = drag["handle"].element_delta(np.asarray(event.end_position[:2], np.float64) - drag["grab"])
             self.preview(drag["handle"], d, drag["index"])
             if phase == "release":
                 self._drag = None
         if self.on_handle_drag is not None:
             self.on_handle_drag(phase, drag["handle"], d)
 
-    def outward_normal(self, handle: Handle) -> np.ndarray:
-        """Unit outward normal of the outline at a handle (outline is counter-clockwise)."""
-        P = self.pattern.panel(handle.panel).outline
-        k = len(P)
-        t = P[(handle.vertex + 1) % k] - P[(handle.vertex - 1) % k]
-        n = np.array([t[1], -t[0]])
-        return n / max(np.linalg.norm(n), 1e-12)
+    def handle_motion(self, handle: Handle, dd: np.ndarray) -> np.ndarray:
+        """How far a handle's point moves for the edit d = dd, to first order [m], shape (2,)."""
+        pj = self.handle_set.jacobians.get(handle.element, {}).get(handle.panel)
+        if pj is None:
+            return np.zeros(2)
+        jac = pj.outline if handle.hole < 0 else pj.holes[handle.hole]
+        return jac[handle.vertex] @ np.asarray(dd, np.float64)
 
-    def preview(self, handle: Handle, d: np.ndarray, index: int | None = None) -> None:
-        """Show a drag before the pattern model answers: the handle moves by d,
-        the outline follows with the boundary-interpolation hat, and a
-        symmetric panel's mirror follows live."""
-        panel = self.pattern.panel(handle.panel)
-        w = handle_weights(panel, handle)
-        outline = panel.outline + w[:, None] * np.asarray(d)[None, :]
+    def preview(self, handle: Handle, dd: np.ndarray, index: int | None = None) -> None:
+        """Show an edit before the new design is drafted: every outline moves
+        by its Jacobian (X + J dd: a sloper option moves every gore), the
+        handle with its point."""
+        if self.pattern is None:
+            return
+        moved = self.handle_set.moved_outlines(self.pattern, handle.element, dd)
         with self.server.atomic():
-            self._draw_panel(panel, outline)
-            if self._handle_node is not None and index is not None:
+            for p in self.pattern.panels:
+                if p.name in moved and moved[p.name] is not p.outline:
+                    self._draw_panel(p, moved[p.name])
+            if self._handle_node is not None and index is not None and index < len(self.handles):
                 pos = self.handle_positions()
-                pos[index, :2] += d
+                pos[index, :2] += self.handle_motion(handle, dd)
                 self._handle_node.batched_positions = pos.astype(np.float32)
 
 

@@ -64,6 +64,14 @@ class DrapeFrame:
     generation: int = 0
     tag: Any = None
     """opaque value echoed to the page with the frame (benchmarks use it)"""
+    solver: str = ""
+    """solver node that produced it ('' for predictions)"""
+    converged: bool | None = None
+    """None: unknown (demo, replay)"""
+    diagnosis: str = ""
+    final: bool = True
+    """False for a solver's progress snapshot"""
+    edit_id: str = ""
     received: float = field(default_factory=time.time)
     """arrival time, Unix [s]"""
 

@@ -95,6 +95,9 @@ def main(config: Config) -> None:
                 st["latest_generation"] = max(st["latest_generation"], msg.generation)
                 for g in sorted(st["designs"])[:-16]:
                     st["designs"].pop(g, None)
+                parked = st.pop("parked", None)
+            if parked is not None:  # a mesh that arrived before its pattern
+                idle.submit("mesh", parked)
 
         def on_mesh(msg: MeshMsg) -> None:
             if msg.level != "fine":
@@ -110,6 +113,8 @@ def main(config: Config) -> None:
             def job() -> None:
                 design = design_for(msg.generation)
                 if design is None:
+                    with lock:
+                        st["parked"] = job
                     return
                 model = ClothModel(mesh, design.fabric, scene_from_design(design))
                 with lock:

@@ -83,6 +83,7 @@ def main(config: Config) -> None:
                         progress_period_s=config.progress_period_s)
 
         designs: dict[int, object] = {}  # pattern generation -> design (recent ones)
+        parked: dict[str, object] = {}  # level -> mesh job waiting for its pattern
 
         def design_for(generation: int):
             older = [g for g in designs if g <= generation]
@@ -94,6 +95,10 @@ def main(config: Config) -> None:
             designs[msg.generation] = msg.design
             for g in sorted(designs)[:-16]:
                 designs.pop(g, None)
+            # history may deliver meshes before the pattern they came from
+            for level, job in list(parked.items()):
+                parked.pop(level, None)
+                worker.submit(f"mesh/{level}", job)
 
         def on_mesh(msg: MeshMsg) -> None:
             lm = service.levels.get(msg.level)
@@ -110,7 +115,8 @@ def main(config: Config) -> None:
             def job() -> None:
                 design = design_for(msg.generation)
                 if design is None:
-                    node.error(f"mesh/{msg.level} of generation {msg.generation} arrived before any pattern; waiting")
+                    log.info("mesh/%s of generation %d arrived before its pattern; parked", msg.level, msg.generation)
+                    parked[msg.level] = job
                     return
                 service.set_design(design)
                 service.set_mesh(msg.level, mesh, msg.mesh_generation, prolong)

@@ -3,11 +3,23 @@
 Messages in → ``CoutureUI.show_*``/``set_*`` (which only store the newest value
 and return: Zenoh callback threads never wait on drawing); user actions →
 messages out (``pattern`` on every design change, ``edit`` on every drag phase).
+
+Also here, because they need the bus: which solver's drapes are shown (the
+"solver" dropdown: drapes of other ``solver-*`` nodes are kept but not
+drawn), the status notes that say what the pipeline can do right now (no
+sensitivity node: no predictions while dragging), and the record toggle
+(with no recorder node live it runs ``python -m couture.recording`` on this
+node's bus and stops it with SIGINT so the MCAP file is finalized).
 """
 
 from __future__ import annotations
 
 import logging
+import signal
+import subprocess
+import sys
+import threading
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,6 +42,8 @@ class Config:
     port: int = 8080
     """3D view port; the pattern view is port + 1 and the combined page port + 2"""
     export_dir: Path = Path("out/exports")
+    record_dir: Path = Path("out/recordings")
+    """where the record toggle writes session-<time>.mcap (when no recorder node runs)"""
     design: Design | None = None
     """initial design (None: the default skirt); published once at start"""
     publish_initial: bool = True
@@ -39,8 +53,17 @@ class UIAdapter:
     """Wires one CoutureUI to one bus. Separate from :func:`main` so tests can
     drive it with their own Node."""
 
-    def __init__(self, node: Node, ui: CoutureUI, name: str):
+    def __init__(self, node: Node, ui: CoutureUI, name: str, *, bus_config: BusConfig | None = None,
+                 record_dir: Path = Path("out/recordings")):
         self.node, self.ui, self.name = node, ui, name
+        self.bus_config = bus_config or BusConfig()
+        self.record_dir = Path(record_dir)
+        self.recorder: subprocess.Popen | None = None
+        self.record_path: Path | None = None
+        self.live: dict[str, bool] = {}
+        self._last: dict[tuple[str, str], DrapeMsg] = {}
+        """(solver, level) -> newest drape, to re-show on a solver switch"""
+        self._lock = threading.Lock()
         bus = node.bus
         self.pattern_pub = bus.publisher("pattern", PatternMsg)
         self.edit_pub = bus.publisher("edit", EditMsg)
@@ -49,14 +72,15 @@ class UIAdapter:
         self.seen_pattern = False
         ui.on_design_changed = self.publish_design
         ui.on_edit = self.publish_edit
-        ui.on_solver_selected = lambda name: log.info("solver selected: %s", name)
-        ui.on_record = lambda on: log.info("record %s (the recorder node records every session)", on)
+        ui.on_solver_selected = self.select_solver
+        ui.on_record = self.record
         bus.subscribe("pattern", self.on_pattern)
         bus.subscribe("edit", self.on_edit)
         bus.subscribe("mesh/*", self.on_mesh)
         bus.subscribe("drape/*", self.on_drape)
         bus.subscribe("status/*", self.on_status)
-        bus.watch_nodes(lambda n, alive: ui.set_live_nodes({n: alive}))
+        bus.watch_nodes(self.on_liveliness)
+        self._update_notes()
 
     # -- out
     def publish_design(self, design: Design) -> None:
@@ -79,21 +103,121 @@ class UIAdapter:
         self.ui.set_design(msg.design)
 
     def on_edit(self, msg: EditMsg) -> None:
-        if msg.edit_id in self._own_edits:
-            return
+        if msg.edit_id in self._own_edits or msg.picked_vertex >= 0:
+            return  # our own, or a 3D tug (its d is in pixels: nothing to move in 2D)
         self.ui.apply_edit({"element": msg.element, "d": msg.d.numpy(), "phase": msg.phase})
 
     def on_mesh(self, msg: MeshMsg) -> None:
         self.ui.show_mesh(msg_to_mesh(msg))
 
     def on_drape(self, msg: DrapeMsg) -> None:
-        # drop a drape older than one already shown at that level (reordering)
-        if msg.generation < self._drape_gen.get(msg.level, -1):
+        # drop a drape older than one already shown from that producer at that
+        # level (history can arrive out of order)
+        key = (msg.solver, msg.level)
+        if msg.generation < self._drape_gen.get(key, -1):
             return
-        self._drape_gen[msg.level] = msg.generation
-        self.ui.show_drape(msg.x.numpy(), msg.level, msg.method or msg.solver,
-                           residual=msg.residual, error_estimate=msg.error_estimate, generation=msg.generation)
+        self._drape_gen[key] = msg.generation
+        with self._lock:
+            self._last[key] = msg
+        chosen = self.ui.selected_solver
+        if msg.solver and chosen != "any" and msg.solver != chosen:
+            self.node.count("drape_other_solver")
+            return
+        self._show(msg)
+
+    def _show(self, msg: DrapeMsg) -> None:
+        self.ui.show_drape(msg.x.numpy(), msg.level, msg.method, residual=msg.residual,
+                           error_estimate=msg.error_estimate, generation=msg.generation, solver=msg.solver,
+                           converged=msg.converged if msg.solver else None, diagnosis=msg.diagnosis,
+                           final=msg.final, edit_id=msg.edit_id)
         self.node.count("drape_in")
+
+    def select_solver(self, name: str) -> None:
+        """Show ``name``'s newest drape at once (fine, else coarse)."""
+        log.info("solver selected: %s", name)
+        with self._lock:
+            mine = [m for (s, lv), m in self._last.items() if s and (name == "any" or s == name)]
+        if mine:
+            best = max(mine, key=lambda m: (m.generation, m.level == "fine", m.stamp_ns))
+            self._show(best)
+        self._update_notes()
+
+    def on_liveliness(self, node: str, alive: bool) -> None:
+        self.live[node] = alive
+        self.ui.set_live_nodes({node: alive})
+        self._update_notes()
+
+    def _update_notes(self) -> None:
+        live = {n for n, a in self.live.items() if a}
+        notes = []
+        if not any(n.startswith("sensitivity") for n in live):
+            notes.append("Predictions are off (no sensitivity node is live): while dragging the pattern moves; "
+                         "the solver's drape is shown after release.")
+        solvers = sorted(n for n in live if n.startswith("solver"))
+        if not solvers:
+            notes.append("No solver node is live: the last drape stays on screen.")
+        chosen = self.ui.selected_solver
+        if chosen != "any" and chosen not in live:
+            notes.append(f"{chosen} is not live: its last drape stays on screen (choose another solver).")
+        elif chosen != "any" and len(solvers) > 1:
+            others = ", ".join(s for s in solvers if s != chosen)
+            notes.append(f"Showing {chosen}'s drapes only ({others} also running).")
+        self.ui.set_status_notes(notes)
+
+    # -- record toggle
+    def record(self, on: bool) -> None:
+        if on:
+            self.start_recording()
+        else:
+            self.stop_recording()
+
+    def recorder_args(self, out: Path) -> list[str]:
+        """``python -m couture.recording`` on this node's bus: the same session,
+        connecting where this node connects (or to where it listens)."""
+        cfg = self.bus_config
+        connect = list(cfg.connect) or [e for e in cfg.listen if not e.endswith(":0")]
+        rec = BusConfig(session=cfg.session, connect=connect, listen=["tcp/127.0.0.1:0"], mode="peer",
+                        config_file=cfg.config_file, multicast=cfg.multicast)
+        return [sys.executable, "-m", "couture.recording", "--out", str(out), "--quiet",
+                "--name", f"{self.name}-recorder", *rec.to_args()]
+
+    def start_recording(self) -> Path | None:
+        if self.recorder is not None and self.recorder.poll() is None:
+            return self.record_path
+        nodes = [n for n, a in self.live.items() if a and n.startswith("recorder")]
+        if nodes:
+            self.ui.set_record_note(f"`{nodes[0]}` already records this session (see its --out file).", on=True)
+            return None
+        self.record_dir.mkdir(parents=True, exist_ok=True)
+        path = (self.record_dir / f"session-{time.strftime('%Y%m%d-%H%M%S')}.mcap").resolve()
+        self.recorder = subprocess.Popen(self.recorder_args(path), stdin=subprocess.DEVNULL, start_new_session=True)
+        self.record_path = path
+        log.info("recording to %s (pid %d)", path, self.recorder.pid)
+        self.ui.set_record_note(f"recording to `{path}`", on=True)
+        return path
+
+    def stop_recording(self, timeout: float = 10.0) -> Path | None:
+        proc, path = self.recorder, self.record_path
+        if proc is None:
+            return None
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)  # the recorder finalizes the MCAP file (summary, index)
+            try:
+                proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                proc.terminate()
+                try:
+                    proc.wait(timeout=3.0)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+        self.recorder = None
+        log.info("recording stopped: %s", path)
+        self.ui.set_record_note(f"recorded `{path}`", on=False)
+        return path
+
+    def close(self) -> None:
+        self.stop_recording()
 
     def on_status(self, msg: StatusMsg) -> None:
         self.ui.set_node_status(msg.node, kind=msg.kind, state=msg.state, rates=msg.rates,
@@ -106,14 +230,18 @@ def main(config: Config) -> None:
     with Node(config.name, config.bus, kind="ui") as node:
         url = ui.start()
         try:
-            adapter = UIAdapter(node, ui, config.name)
+            adapter = UIAdapter(node, ui, config.name, bus_config=config.bus, record_dir=config.record_dir)
             log.info("couture UI at %s (3D %s, pattern %s)", url, ui.url3d, ui.url2d)
             print(f"couture UI: {url}", flush=True)
             # a session already under way (the pattern topic keeps its last
             # sample for late joiners) wins over the default design
             node.stop_flag.wait(1.0)
             if config.publish_initial and not adapter.seen_pattern:
+                ui.generation = max(ui.generation, 1)  # generations start at 1 (as Client.publish_pattern's)
                 adapter.publish_design(ui.design)
-            node.run()
+            try:
+                node.run()
+            finally:
+                adapter.close()
         finally:
             ui.stop()
