@@ -10,7 +10,7 @@ import shutil
 import sys
 from pathlib import Path
 
-BENCHES = ["bus", "solver", "remesh", "sensitivity", "ui"]
+BENCHES = ["bus", "solver", "remesh", "sensitivity", "edit", "ui", "drape_slopers"]
 
 
 def _parser() -> argparse.ArgumentParser:
