@@ -169,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=5.0)
     ap.add_argument("--offer-hz", type=float, default=120.0)
     ap.add_argument("--fields", default="none,strain", help="colour maps to run, comma-separated")
-    ap.add_argument("--out", type=Path, default=None, help="also write the JSON here")
+    ap.add_argument("--out", type=Path, default=Path("bench/results/ui.json"), help="write the JSON here")
     a = ap.parse_args(argv)
     res = run(a.vertices, a.seconds, a.offer_hz, tuple(a.fields.split(",")))
     text = json.dumps(res, indent=2)
