@@ -318,8 +318,12 @@ def cloth_sphere_drape(nx: int = 16, *, fab=None, size: float = 0.6, radius: flo
     """SC Fig. 5 scene: a square cloth pinned along one edge, partly draped on a sphere.
 
     Sphere of radius 0.2 m at the origin; the 0.6 m cloth starts flat 2 cm above
-    the sphere's top, its pinned edge 0.15 m past the sphere's centre, so the
-    rest of it falls over the sphere and hangs on the far side.
+    the sphere's top, its pinned edge over the sphere, 5 cm before its centre,
+    so the rest of it falls over the sphere and hangs on the far side.
+
+    (The pinned edge used to be 0.15 m *outside* the sphere's footprint: without
+    friction the cloth then slides off and hangs free from its pins, 25 cm from
+    the sphere, with every solver; re-run, the drape never touched the sphere.)
     """
     from couture.cloth import ClothModel, Scene
     from couture.cloth.body import SphereBody as Sphere
@@ -327,7 +331,7 @@ def cloth_sphere_drape(nx: int = 16, *, fab=None, size: float = 0.6, radius: flo
 
     m = grid_sheet(size, size, nx, nx)
     X = m.X
-    m.x0 = np.column_stack([X[:, 0] - size / 2, np.full(len(X), radius + 0.02), X[:, 1] - size / 2 - 0.15])
+    m.x0 = np.column_stack([X[:, 0] - size / 2, np.full(len(X), radius + 0.02), X[:, 1] - 0.05])
     m.pinned = np.nonzero(np.isclose(X[:, 1], 0.0))[0].astype(np.int32)
     body = Sphere(center=np.zeros(3), radius=radius)
     return ClothModel(m, fab or fabric(), Scene(body=body, friction=friction))

@@ -34,13 +34,22 @@ def test_sc_fig6_random_initial_guess(kind):
 
 @pytest.mark.slow
 def test_sc_fig5_sphere_drape_all_solvers_agree_with_newton():
-    """0.6 m square pinned along one edge, partly draped over a 0.2 m sphere.
+    """0.6 m square pinned along an edge over a 0.2 m sphere, draped over it (no friction).
 
-    Reference: Newton to residual 1e-9 (warm-started from a kinetic solve; from
-    the flat start the contact makes Newton crawl). Tolerances on max vertex
-    distance / cloth size: kinetic (to 1e-6) 1e-3; verlet (its own spring model
-    with inextensible edges, quartic spring bending, no friction: it settles
-    differently on the sphere) 0.25 (measured 0.196).
+    Reference: Newton to residual 1e-9 warm-started from the kinetic drape (1e-6):
+    max vertex distance / cloth size < 1e-4 (measured 6e-7).
+
+    A frictionless cloth on a sphere has many equilibria (fold patterns; the
+    hanging part can settle turned about the sphere), so solvers started cold
+    may find another one, and which one the kinetic path picks depends on its
+    step control: cold Newton is checked on its residual and on the centroid
+    (within 2% of the size; measured 0.2% and 0.7% against references from
+    two kinetic configurations, whose equilibria differed in energy by 0.7%
+    and 11%, so energies are not compared). Verlet solves its own spring
+    model (inextensible edges, quartic spring bending): centroid and lowest
+    point within 10% of the size (measured 3.7-4.4% and 4.2-5.9%; re-run when
+    this scene was fixed: the earlier 0.25 bound on max distance had never
+    been run, and in that scene the cloth slid off the sphere).
     """
     m = cloth_sphere_drape(20)
     size = 0.6
@@ -52,14 +61,66 @@ def test_sc_fig5_sphere_drape_all_solvers_agree_with_newton():
     ver = get_solver("verlet").solve(m, m.mesh.x0, tol=1e-4)
     assert ver.converged, ver.diagnosis
     d_kin = np.linalg.norm(kin.x - ref.x, axis=1).max() / size
-    d_ver = np.linalg.norm(ver.x - ref.x, axis=1).max() / size
-    print(f"kinetic {d_kin:.2e}, verlet {d_ver:.2e}, cold newton {newton_cold.converged} {newton_cold.residual:.2e}")
-    assert d_kin < 1e-3
-    assert d_ver < 0.25
-    if newton_cold.converged:
-        assert np.linalg.norm(newton_cold.x - ref.x, axis=1).max() / size < 1e-3
-    else:
-        assert newton_cold.diagnosis
-    # the drape touches the sphere and stays outside it (contact offset 1 cm, penalty)
-    phi, _ = m.body.phi_grad(ref.x)
-    assert phi.min() > 0.0 and phi.min() < 0.02
+
+    def centroid(x):
+        return np.linalg.norm(x.mean(axis=0) - ref.x.mean(axis=0)) / size
+
+    low_ver = abs(ver.x[:, 1].min() - ref.x[:, 1].min()) / size
+    print(f"kinetic {d_kin:.2e}; verlet centroid {centroid(ver.x):.2e} lowest {low_ver:.2e}; "
+          f"cold newton {newton_cold.converged} {newton_cold.residual:.2e} centroid {centroid(newton_cold.x):.2e} "
+          f"energy {m.energy(newton_cold.x) / m.energy(ref.x) - 1:+.2e}")
+    assert d_kin < 1e-4
+    assert centroid(ver.x) < 0.1 and low_ver < 0.1
+    assert newton_cold.converged, newton_cold.diagnosis
+    assert centroid(newton_cold.x) < 0.02
+    # every drape touches the sphere and stays outside it (contact offset 1 cm, penalty)
+    for x in (ref.x, newton_cold.x, ver.x):
+        phi, _ = m.body.phi_grad(x)
+        assert phi.min() > 0.0 and phi.min() < 0.02
+
+
+@pytest.mark.slow
+def test_default_skirt_drapes_from_placement():
+    """The garment users drape: the default A-line skirt (Design()) at ~300
+    vertices, from the initial placement around the mannequin.
+
+    With friction on (the default scene) kinetic reaches relative residual
+    1e-3, including the anchor forces. Agreement with the reference is
+    checked without friction (quasi-static friction makes the drape depend on
+    the path: measured, Newton from the kinetic drape with the anchors
+    refreshed once moved it 13.5 mm): kinetic to 1e-4, Newton warm-started
+    there to 2e-5, max vertex distance < 1 mm (the skirt is ~0.6 m long;
+    measured 0.1-0.35 mm). Every drape keeps the cloth outside the body (phi > 0)
+    and its seams closed to < 1 mm.
+    """
+    from couture.cloth import ClothModel
+    from couture.remesh.service import RemeshService
+    from couture.solvers.service import scene_from_design
+    from schemas.design import Design, Resolution
+
+    design = Design(resolution=Resolution(coarse_vertices=300, fine_vertices=1200))
+    mesh = next(u.mesh for u in RemeshService().set_design(design, 1) if u.level == "coarse")
+    scene = scene_from_design(design)
+    model = ClothModel(mesh, design.fabric, scene)
+    assert "friction" in model.terms and "seams" in model.terms and model.n < 500
+    kin_f = get_solver("kinetic").solve(model, mesh.x0, tol=1e-3, max_seconds=60)
+    assert kin_f.converged, kin_f.diagnosis
+    assert model.relative_residual(kin_f.x) <= 1e-3 * 1.0001
+
+    scene.friction = False
+    free = ClothModel(mesh, design.fabric, scene)
+    kin = get_solver("kinetic").solve(free, mesh.x0, tol=1e-4, max_seconds=60)
+    assert kin.converged, kin.diagnosis
+    # Newton stalls at ~1.3e-5 here (line search at the energy's round-off level; see report)
+    ref = get_solver("newton").solve(free, kin.x, tol=2e-5, max_seconds=30)
+    assert ref.converged, ref.diagnosis
+    d = np.linalg.norm(kin.x - ref.x, axis=1).max()
+    print(f"skirt n={model.n}: kinetic with friction {kin_f.iterations} steps {kin_f.wall_time:.1f} s; "
+          f"frictionless kinetic {kin.iterations} steps {kin.wall_time:.1f} s, newton {ref.iterations} its "
+          f"{ref.wall_time:.1f} s, max distance {d * 1e3:.2f} mm")
+    assert d < 1e-3
+    for x in (kin_f.x, kin.x, ref.x):
+        assert model.body.phi_grad(x)[0].min() > 0.0
+        st, w = model.seam_stencils, model.seam_w
+        gap = w[:, 0, None] * x[st[:, 0]] + w[:, 1, None] * x[st[:, 1]] + w[:, 2, None] * x[st[:, 2]]
+        assert np.linalg.norm(gap, axis=1).max() < 1e-3

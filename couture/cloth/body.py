@@ -68,12 +68,16 @@ class GridSDFBody:
     """[m]"""
     values: np.ndarray
     """signed distance at the nodes [m], shape (nx, ny, nz), float64"""
+    interpolation: str = "bspline"
+    """'bspline': C² cubic B-spline (default; smooth contact forces, see
+    kernels.bspline_phi_grad); 'trilinear': C⁰, its gradient jumps across cell faces"""
 
     def phi_grad(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         p = np.ascontiguousarray(points, dtype=np.float64)
         phi = np.empty(len(p))
         grad = np.empty((len(p), 3))
-        K.trilinear_phi_grad(p, np.asarray(self.origin, np.float64), float(self.spacing), self.values, phi, grad)
+        kernel = K.bspline_phi_grad if self.interpolation == "bspline" else K.trilinear_phi_grad
+        kernel(p, np.asarray(self.origin, np.float64), float(self.spacing), self.values, phi, grad)
         return phi, grad
 
 

@@ -353,30 +353,51 @@ def stencil_scatter(weights, coef, slots, vals):
 
 
 @njit(cache=True)
-def contact_forces(phi, grad, offset, k_c, f):
-    """E = k_c/2 max(0, offset - phi)^2 per vertex; f += -dE/dx; returns E."""
+def contact_law(pen, k_c, eps):
+    """Penalty energy, normal force and stiffness of a penetration ``pen`` [m]
+    into the offset layer, C² with a stiffness ramp of width ``eps`` [m]:
+
+        pen <= 0:        E = 0,                          F = 0,               S = 0
+        0 < pen < eps:   E = k pen³ / (6 eps),           F = k pen² / (2 eps), S = k pen / eps
+        pen >= eps:      E = k (pen²/2 - eps pen/2 + eps²/6), F = k (pen - eps/2), S = k
+
+    eps = 0 is the plain quadratic penalty k/2 pen² (C¹: its stiffness jumps
+    from 0 to k at the offset surface)."""
+    if pen <= 0.0:
+        return 0.0, 0.0, 0.0
+    if pen < eps:
+        return k_c * pen * pen * pen / (6.0 * eps), 0.5 * k_c * pen * pen / eps, k_c * pen / eps
+    return k_c * (0.5 * pen * pen - 0.5 * eps * pen + eps * eps / 6.0), k_c * (pen - 0.5 * eps), k_c
+
+
+@njit(cache=True)
+def contact_forces(phi, grad, offset, k_c, eps, f):
+    """E = sum of contact_law(offset - phi) energies; f += -dE/dx = F grad; returns E."""
     e = 0.0
     for v in range(phi.shape[0]):
         pen = offset - phi[v]
         if pen > 0.0:
-            e += 0.5 * k_c * pen * pen
+            ev, fv, sv = contact_law(pen, k_c, eps)
+            e += ev
             for i in range(3):
-                f[v, i] += k_c * pen * grad[v, i]
+                f[v, i] += fv * grad[v, i]
     return e
 
 
 @njit(cache=True)
-def contact_stiffness(phi, grad, offset, k_c, diag_slots, blk_base, blk_stride, data):
-    """Gauss-Newton Hessian k_c grad grad^T for vertices inside the offset (PSD;
-    it drops k_c pen Hess(phi), the body's curvature term)."""
+def contact_stiffness(phi, grad, offset, k_c, eps, diag_slots, blk_base, blk_stride, data):
+    """Gauss-Newton Hessian S(pen) grad grad^T for vertices inside the offset (PSD;
+    it drops F(pen) Hess(phi), the body's curvature term)."""
     for v in range(phi.shape[0]):
-        if offset - phi[v] > 0.0:
+        pen = offset - phi[v]
+        if pen > 0.0:
+            ev, fv, sv = contact_law(pen, k_c, eps)
             s = diag_slots[v]
             base = blk_base[s]
             st = blk_stride[s]
             for i in range(3):
                 for j in range(3):
-                    data[base + i * st + j] += k_c * grad[v, i] * grad[v, j]
+                    data[base + i * st + j] += sv * grad[v, i] * grad[v, j]
 
 
 @njit(cache=True)
@@ -561,3 +582,102 @@ def signed_distance_candidates(points, cand, V, F, face_n, edge_n, vert_n, out):
                     nx, ny, nz = vert_n[vv, 0], vert_n[vv, 1], vert_n[vv, 2]
                 sgn = 1.0 if d0 * nx + d1 * ny + d2 * nz >= 0.0 else -1.0
         out[p] = sgn * np.sqrt(best)
+
+
+@njit(cache=True)
+def _bspline3(t, w, dw):
+    """Uniform cubic B-spline weights (and d/dt) of the 4 nodes around t in [0, 1)."""
+    s = 1.0 - t
+    w[0] = s * s * s / 6.0
+    w[1] = (3.0 * t * t * t - 6.0 * t * t + 4.0) / 6.0
+    w[2] = (-3.0 * t * t * t + 3.0 * t * t + 3.0 * t + 1.0) / 6.0
+    w[3] = t * t * t / 6.0
+    dw[0] = -0.5 * s * s
+    dw[1] = 1.5 * t * t - 2.0 * t
+    dw[2] = -1.5 * t * t + t + 0.5
+    dw[3] = 0.5 * t * t
+
+
+@njit(cache=True)
+def bspline_phi_grad(points, origin, spacing, values, phi, grad):
+    """C² cubic B-spline approximation of a grid SDF ``values`` (nx, ny, nz)
+    (node values as control points, end nodes repeated), its exact gradient.
+
+    Why not trilinear: the trilinear interpolant's gradient jumps across
+    every cell face (~spacing / body radius ≈ 0.07 rad on the mannequin's hips
+    at 1 cm spacing), so the penalty contact force k_c pen ∇phi jumps by
+    ~0.08 N on the skirt, ~160x a vertex's weight: no smooth equilibrium for
+    a vertex resting on a face, and solvers chatter at residual ~0.5. The
+    B-spline reproduces linear fields exactly and smooths curvature κ by
+    O(κ h²/6) (< 0.3 mm on the mannequin), far below the 1 cm offset.
+    Points outside the grid: clamped, plus the distance to the grid box.
+    """
+    nx, ny, nz = values.shape
+    lim = (nx, ny, nz)
+    dirx = np.zeros(3)
+    base = np.empty(3, np.int64)
+    wx = np.empty(4)
+    wy = np.empty(4)
+    wz = np.empty(4)
+    dx = np.empty(4)
+    dy = np.empty(4)
+    dz = np.empty(4)
+    ix = np.empty(4, np.int64)
+    iy = np.empty(4, np.int64)
+    iz = np.empty(4, np.int64)
+    for p in range(points.shape[0]):
+        extra2 = 0.0
+        dirx[:] = 0.0
+        for d in range(3):
+            q = (points[p, d] - origin[d]) / spacing
+            hi = lim[d] - 1.0
+            if q < 0.0:
+                extra2 += (q * spacing) ** 2
+                dirx[d] = q * spacing
+                q = 0.0
+            elif q > hi:
+                extra2 += ((q - hi) * spacing) ** 2
+                dirx[d] = (q - hi) * spacing
+                q = hi
+            i = int(np.floor(q))
+            if i > lim[d] - 2:
+                i = lim[d] - 2
+            base[d] = i
+            t = q - i
+            if d == 0:
+                _bspline3(t, wx, dx)
+            elif d == 1:
+                _bspline3(t, wy, dy)
+            else:
+                _bspline3(t, wz, dz)
+        for a in range(4):
+            ix[a] = min(max(base[0] - 1 + a, 0), nx - 1)
+            iy[a] = min(max(base[1] - 1 + a, 0), ny - 1)
+            iz[a] = min(max(base[2] - 1 + a, 0), nz - 1)
+        val = 0.0
+        gx = 0.0
+        gy = 0.0
+        gz = 0.0
+        for a in range(4):
+            for b in range(4):
+                sv = 0.0
+                sz = 0.0
+                for c in range(4):
+                    v = values[ix[a], iy[b], iz[c]]
+                    sv += wz[c] * v
+                    sz += dz[c] * v
+                val += wx[a] * wy[b] * sv
+                gx += dx[a] * wy[b] * sv
+                gy += wx[a] * dy[b] * sv
+                gz += wx[a] * wy[b] * sz
+        if extra2 > 0.0:
+            ex = np.sqrt(extra2)
+            phi[p] = val + ex
+            grad[p, 0] = dirx[0] / ex
+            grad[p, 1] = dirx[1] / ex
+            grad[p, 2] = dirx[2] / ex
+        else:
+            phi[p] = val
+            grad[p, 0] = gx / spacing
+            grad[p, 1] = gy / spacing
+            grad[p, 2] = gz / spacing

@@ -96,6 +96,12 @@ class Scene:
     """[N/m] per vertex; None: CONTACT_STIFFNESS_PER_MU * mu"""
     contact_offset: float = 0.01
     """[m] cloth keeps this far from the body surface (SC: 1-1.5 cm)"""
+    contact_smoothing: float = 0.001
+    """[m] width of the contact stiffness ramp (kernels.contact_law): the penalty
+    is C², not C¹, so Newton and large implicit steps see no stiffness jump at
+    the offset surface (with 0, vertices hovering at the surface made every
+    Newton step on the skirt raise the contact energy ~1000x its predicted
+    decrease). Shifts resting penetration by eps/2."""
     friction_stiffness: float | None = None
     """[N/m] tangential anchor springs; None: the contact stiffness"""
     project_membrane: bool = True
@@ -263,6 +269,7 @@ class ClothModel:
         self.contact_stiffness = (scene.contact_stiffness if scene.contact_stiffness is not None
                                   else CONTACT_STIFFNESS_PER_MU * self.mu)
         self.contact_offset = float(scene.contact_offset)
+        self.contact_smoothing = float(scene.contact_smoothing)
         self.friction_stiffness = (scene.friction_stiffness if scene.friction_stiffness is not None
                                    else self.contact_stiffness)
         self.friction_static = float(getattr(fabric, "friction_static", 0.5))
@@ -399,7 +406,7 @@ class ClothModel:
             e -= float(np.vdot(self.gravity_force, x))
         if "contact" in terms:
             phi, grad = self._contact(x)
-            e += K.contact_forces(phi, grad, self.contact_offset, self.contact_stiffness, f)
+            e += K.contact_forces(phi, grad, self.contact_offset, self.contact_stiffness, self.contact_smoothing, f)
         if "friction" in terms:
             e += K.anchor_forces(x, self.anchored, self.anchor, self.anchor_normal, self.friction_stiffness, f)
         return e, f
@@ -428,7 +435,7 @@ class ClothModel:
                                  self.tri_slots, p.blk_base, p.blk_stride, data)
         if "contact" in terms_:
             phi, grad = self._contact(x)
-            K.contact_stiffness(phi, grad, self.contact_offset, self.contact_stiffness,
+            K.contact_stiffness(phi, grad, self.contact_offset, self.contact_stiffness, self.contact_smoothing,
                                 self.diag_slots, p.blk_base, p.blk_stride, data)
         if "friction" in terms_:
             K.anchor_stiffness(self.anchored, self.anchor_normal, self.friction_stiffness,
@@ -458,13 +465,42 @@ class ClothModel:
             den = max(float(np.linalg.norm(f)), 1e-12)
         return r / den
 
+    def contact_normal_force(self, pen: np.ndarray) -> np.ndarray:
+        """Contact force magnitude [N] per vertex for penetrations ``pen`` [m] of
+        the offset layer (kernels.contact_law; 0 outside)."""
+        pen = np.asarray(pen, dtype=np.float64)
+        k, eps = self.contact_stiffness, self.contact_smoothing
+        if eps <= 0:
+            return k * np.maximum(pen, 0.0)
+        return np.where(pen <= 0, 0.0, np.where(pen < eps, 0.5 * k * pen * pen / eps, k * (pen - 0.5 * eps)))
+
+    def friction_excess(self, x: np.ndarray) -> float:
+        """Largest amount [N] by which an anchor's tangential force exceeds the static
+        Coulomb limit mu_s f_n at x (anchors out of contact: their whole force);
+        <= 0 means the anchor forces are admissible static friction, so a state
+        with small residual is a Coulomb equilibrium as it stands. 0 without friction."""
+        if "friction" not in self.terms or not self.anchored.any():
+            return 0.0
+        idx = np.nonzero(self.anchored)[0]
+        ft = np.linalg.norm(self.forces(x, ["friction"])[idx], axis=1)
+        phi, _ = self._contact(np.ascontiguousarray(x[idx], dtype=np.float64))
+        fn = self.contact_normal_force(self.contact_offset - phi)
+        return float(np.max(ft - self.friction_static * fn))
+
+    def release_friction(self) -> None:
+        """Drop every friction anchor (no-op without friction): a solve that starts
+        far from equilibrium (a fresh placement) lets the cloth settle frictionless first."""
+        if "friction" in self.terms:
+            self.anchored[:] = False
+            self.sliding[:] = False
+
     def update_friction(self, x: np.ndarray) -> dict:
         """Move, create or release friction anchors (Hasegawa 2003); no-op without friction.
 
         In contact (phi < offset) a vertex without anchor gets one at its
         current position (sticking). Anchored vertices: the tangential
         spring force |f_t| = k_t |P(x - a)| is compared with the normal force
-        f_n = k_c (offset - phi): sticking while |f_t| <= mu_s f_n; beyond it
+        f_n = F(offset - phi) (``contact_normal_force``): sticking while |f_t| <= mu_s f_n; beyond it
         the vertex slides and the anchor is dragged along so that |f_t| =
         mu_k f_n (dynamic mode, kept while |f_t| >= mu_k f_n). Anchors of
         vertices out of contact are released. Returns counts.
@@ -490,7 +526,7 @@ class ClothModel:
             d = x[idx] - self.anchor[idx]
             dt = d - np.einsum("ij,ij->i", d, n_)[:, None] * n_
             ft = self.friction_stiffness * np.linalg.norm(dt, axis=1)
-            fn = self.contact_stiffness * pen[idx]
+            fn = self.contact_normal_force(pen[idx])
             limit = np.where(self.sliding[idx], self.friction_kinetic * fn, self.friction_static * fn)
             slide = ft > limit
             self.sliding[idx] = slide

@@ -3,7 +3,8 @@
     from couture.solvers import get_solver
     result = get_solver("kinetic").solve(model, x0, tol=1e-4)
 
-- ``kinetic``: kinetic damping on Baraff-Witkin semi-implicit steps, IC(0)-PCG (SC §7).
+- ``kinetic``: kinetic damping on Baraff-Witkin semi-implicit steps (SC §7) with an adaptive
+  time step, CG preconditioned by a reused sparse factorization (or IC(0)).
 - ``newton``: Newton + Armijo line search, sparse direct factorization (accuracy reference).
 - ``verlet``: Meng 2010 style mass-spring with Stoermer-Verlet (speed end; its own spring model).
 

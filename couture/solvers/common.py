@@ -76,3 +76,20 @@ class Watch:
 
 def finite(a: np.ndarray) -> bool:
     return bool(np.all(np.isfinite(a)))
+
+
+def energy_and_forces(model, x: np.ndarray) -> tuple[float, np.ndarray]:
+    """(E, f) in one pass where the model offers it (ClothModel), else two calls."""
+    both = getattr(model, "energy_and_forces", None)
+    if both is not None:
+        return both(x)
+    return model.energy(x), model.forces(x)
+
+
+def true_stiffness(model, x: np.ndarray):
+    """The unprojected Hessian where the model offers one (``stiffness(x, project=False)``),
+    else its (PSD) stiffness."""
+    try:
+        return model.stiffness(x, project=False)
+    except TypeError:
+        return model.stiffness(x)

@@ -214,7 +214,12 @@ class _CholmodFactor(Factor):
     def __init__(self, A):
         from sksparse.cholmod import analyze
 
-        self._f = analyze(sp.csc_matrix(A), mode="supernodal", ordering_method="amd")
+        # nested dissection (METIS) fills in ~10% less than AMD on garment meshes
+        # and factors 1.5-3x faster (measured, 1.6k and 10k-vertex skirts)
+        try:
+            self._f = analyze(sp.csc_matrix(A), mode="supernodal", ordering_method="nesdis")
+        except Exception:  # CHOLMOD built without METIS
+            self._f = analyze(sp.csc_matrix(A), mode="supernodal", ordering_method="amd")
         self.refactor(A)
 
     def refactor(self, A):
@@ -289,3 +294,41 @@ def time_backends(A: sp.spmatrix, repeats: int = 2) -> dict[str, dict[str, float
         f.solve(np.ones(A.shape[0]))
         out[name] = {"first_s": t1 - t0, "refactor_s": best, "solve_s": time.perf_counter() - t}
     return out
+
+
+def pcg_factor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray | None, factor: "Factor", rtol: float,
+               maxiter: int) -> tuple[np.ndarray, int, float]:
+    """CG on SPD ``A`` preconditioned by a direct factorization of a nearby matrix
+    (an earlier step's ``M + dt² K``): exact for the matrix it was made from, so
+    CG needs a handful of iterations while K drifts, and the expensive
+    factorization is amortized over many steps. Returns (x, iterations, ||r||/||b||)."""
+    x = np.zeros(len(b)) if x0 is None else np.array(x0, dtype=np.float64, copy=True)
+    bn = float(np.linalg.norm(b))
+    if bn == 0.0:
+        return np.zeros(len(b)), 0, 0.0
+    r = b - A @ x
+    rn = float(np.linalg.norm(r))
+    if rn <= rtol * bn:
+        return x, 0, rn / bn
+    z = factor.solve(r)
+    p = z.copy()
+    rz = float(r @ z)
+    it = 0
+    while it < maxiter:
+        it += 1
+        q = A @ p
+        pq = float(p @ q)
+        if not pq > 0.0:
+            break
+        alpha = rz / pq
+        x += alpha * p
+        r -= alpha * q
+        rn = float(np.linalg.norm(r))
+        if rn <= rtol * bn or not np.isfinite(rn):
+            break
+        z = factor.solve(r)
+        rz_new = float(r @ z)
+        p *= rz_new / rz
+        p += z
+        rz = rz_new
+    return x, it, rn / bn
