@@ -109,12 +109,23 @@ def _session() -> BusConfig:
 
 
 def _wait_recorder(sup: supervisor.Supervisor, timeout: float = 30.0) -> None:
+    """Wait until the nodes are live *and* the recorder's subscription reaches
+    us: liveliness comes up before the recorder subscribes, and a publisher's
+    matching status on ``pattern`` is already satisfied by the remesher. A
+    probe key that only the recorder's ``couture/<session>/**`` matches tells."""
+    from couture.bus import open_session
     from couture.client import Client
 
     with Client(bus=sup.child_bus) as c:
-        missing = c.wait_nodes(["recorder", "remesher", *[f"solver-{s}" for s in sup_solvers(sup)]], timeout)
-        if missing:
-            raise TimeoutError(f"nodes not live: {missing}")
+        c.wait_nodes(["recorder", "remesher", *[f"solver-{s}" for s in sup_solvers(sup)]], timeout)
+    with open_session(sup.child_bus, name="golden-probe") as bus:
+        probe = bus.zenoh.declare_publisher(bus.key(f"probe/{uuid.uuid4().hex[:8]}"))
+        deadline = time.monotonic() + timeout
+        while not probe.matching_status.matching:
+            if time.monotonic() > deadline:
+                raise TimeoutError("the recorder never subscribed")
+            time.sleep(0.02)
+        probe.undeclare()
 
 
 def sup_solvers(sup: supervisor.Supervisor) -> list[str]:
