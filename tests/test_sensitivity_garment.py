@@ -83,13 +83,21 @@ def test_skirt_length_sensitivity_matches_finite_differences(skirt):
     s = f.param_column(psi[:, :, 0])
     assert np.all(np.isfinite(s)) and np.abs(s).max() > 0.5
     X = model.X.copy()
-    # small enough that no vertex crosses the contact law's 1 mm smoothing zone
-    # (where the force's second derivative jumps) between the two re-solves
-    h = 2e-4
+    # The FD step must stay inside the region where x(g) is linear. Every
+    # contact vertex here rests inside the contact law's ramp (pen < 0.14 mm <
+    # eps = 1 mm, stiffness k pen/eps), one of them only 0.12 um deep (stiffness
+    # ~0.9 N/m, far above the softest mode, ~5e-3 N/m): it lifts off at
+    # g + ~3e-5, and beyond that the slope of x(g) differs by ~4e-3 relative,
+    # so steps of 2e-4..1e-3 measure the mean of two branches (rel. error
+    # ~1.6e-3 whatever h). With h = 5e-6 the central difference is O(h²)-exact
+    # (measured ~1e-6) and no vertex enters or leaves contact (checked).
+    h = 5e-6
     xs = []
+    in_contact = model.body.phi_grad(x)[0] < model.contact_offset
     for sign in (1, -1):
         model.set_rest_positions(X + sign * h * psi[:, :, 0])
         xs.append(solve_gauged(model, x, tol=1e-11))  # stops at the round-off floor (~3e-10)
+        assert np.array_equal(model.body.phi_grad(xs[-1])[0] < model.contact_offset, in_contact)
     model.set_rest_positions(X)
     fd = ((xs[0] - xs[1]) / (2 * h)).ravel()
     sp_ = spin_mode(x)

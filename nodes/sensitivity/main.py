@@ -27,7 +27,7 @@ import msgspec
 import numpy as np
 
 from couture.bus import BusConfig, Node
-from couture.bus.worker import LatestWorker
+from couture.bus.worker import DesignLog, LatestWorker
 from couture.cloth.model import ClothModel
 from couture.pattern import SLOPERS
 from couture.sensitivity import Predictor, drag_to_param
@@ -81,20 +81,14 @@ def main(config: Config) -> None:
         idle = LatestWorker("sensitivity-idle", on_error=node.error)
         edits = LatestWorker("sensitivity-edit", on_error=node.error)
         lock = threading.RLock()
-        st = {"designs": {}, "mesh": None, "mesh_generation": -1, "generation": -1, "model": None,
-              "gesture": None, "latest_generation": 0}
-
-        def design_for(generation: int):
-            older = [g for g in st["designs"] if g <= generation]
-            return st["designs"][max(older)] if older else None
+        designs = DesignLog()
+        st = {"mesh": None, "mesh_generation": -1, "generation": -1, "model": None,
+              "gesture": None}
 
         # -- inputs -----------------------------------------------------------
         def on_pattern(msg: PatternMsg) -> None:
+            designs.add(msg.generation, msg.design)
             with lock:
-                st["designs"][msg.generation] = msg.design
-                st["latest_generation"] = max(st["latest_generation"], msg.generation)
-                for g in sorted(st["designs"])[:-16]:
-                    st["designs"].pop(g, None)
                 parked = st.pop("parked", None)
             if parked is not None:  # a mesh that arrived before its pattern
                 idle.submit("mesh", parked)
@@ -111,7 +105,7 @@ def main(config: Config) -> None:
             mesh = msg_to_mesh(msg)
 
             def job() -> None:
-                design = design_for(msg.generation)
+                design = designs.at(msg.generation)
                 if design is None:
                     with lock:
                         st["parked"] = job
@@ -221,7 +215,7 @@ def main(config: Config) -> None:
             if x is None or g.picked_vertex < 0 or not g.param:
                 return
             # a 3D tug ends with the new design: the sloper parameter moved by Δg
-            design = design_for(g.generation)
+            design = designs.at(g.generation)
             if design is None:
                 return
             opt = {o.name: o for o in SLOPERS[design.sloper.kind].options}.get(g.param)
@@ -232,7 +226,7 @@ def main(config: Config) -> None:
             g0 = params.get(g.param, opt.default)
             params[g.param] = float(np.clip(g0 + g.d[0], opt.min, opt.max))
             new = msgspec.structs.replace(design, sloper=Sloper(kind=design.sloper.kind, params=params))
-            gen = max(st["latest_generation"], g.generation) + 1
+            gen = max(designs.latest_generation, g.generation) + 1
             pattern_pub.put(PatternMsg(design=new, generation=gen, source=config.name, name="3D tug"))
             log.info("3D tug: %s %.4f -> %.4f (generation %d)", g.param, g0, params[g.param], gen)
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from couture.bus import BusConfig, Node
-from couture.bus.worker import LatestWorker
+from couture.bus.worker import DesignLog, LatestWorker
 from couture.cloth.model import ClothModel
 from couture.solvers import get_solver
 from couture.solvers.service import LevelRun, SolveService, scene_from_design
@@ -82,19 +82,13 @@ def main(config: Config) -> None:
             service.run(should_abort=should_abort, on_progress=on_progress, on_level=on_level,
                         progress_period_s=config.progress_period_s)
 
-        designs: dict[int, object] = {}  # pattern generation -> design (recent ones)
+        designs = DesignLog()
         parked: dict[str, object] = {}  # level -> mesh job waiting for its pattern
-
-        def design_for(generation: int):
-            older = [g for g in designs if g <= generation]
-            return designs[max(older)] if older else None
 
         def on_pattern(msg: PatternMsg) -> None:
             # Only remember it: a pattern the remesher rejects must not stop the
             # current solve; valid patterns come back as new meshes.
-            designs[msg.generation] = msg.design
-            for g in sorted(designs)[:-16]:
-                designs.pop(g, None)
+            designs.add(msg.generation, msg.design)
             # history may deliver meshes before the pattern they came from
             for level, job in list(parked.items()):
                 parked.pop(level, None)
@@ -113,7 +107,7 @@ def main(config: Config) -> None:
                 prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
 
             def job() -> None:
-                design = design_for(msg.generation)
+                design = designs.at(msg.generation)
                 if design is None:
                     log.info("mesh/%s of generation %d arrived before its pattern; parked", msg.level, msg.generation)
                     parked[msg.level] = job
