@@ -89,7 +89,7 @@ def test_default_skirt_drapes_from_placement():
     checked without friction (quasi-static friction makes the drape depend on
     the path: measured, Newton from the kinetic drape with the anchors
     refreshed once moved it 13.5 mm): kinetic to 1e-4, Newton warm-started
-    there to 2e-5, max vertex distance < 1 mm (the skirt is ~0.6 m long;
+    there to 5e-5, max vertex distance < 1 mm (the skirt is ~0.6 m long;
     measured 0.1-0.35 mm). Every drape keeps the cloth outside the body (phi > 0)
     and its seams closed to < 1 mm.
     """
@@ -111,8 +111,11 @@ def test_default_skirt_drapes_from_placement():
     free = ClothModel(mesh, design.fabric, scene)
     kin = get_solver("kinetic").solve(free, mesh.x0, tol=1e-4, max_seconds=60)
     assert kin.converged, kin.diagnosis
-    # Newton stalls at ~1.3e-5 here (line search at the energy's round-off level; see report)
-    ref = get_solver("newton").solve(free, kin.x, tol=2e-5, max_seconds=30)
+    # Newton stalls at 1.3e-5 (CHOLMOD) to 2.2e-5 (SuperLU, what a fresh install
+    # uses): the frictionless skirt is nearly free to spin about the body's
+    # axis and the line search crawls along that mode. The reference is asked
+    # for 5e-5, still twice tighter than kinetic's 1e-4.
+    ref = get_solver("newton").solve(free, kin.x, tol=5e-5, max_seconds=30)
     assert ref.converged, ref.diagnosis
     d = np.linalg.norm(kin.x - ref.x, axis=1).max()
     print(f"skirt n={model.n}: kinetic with friction {kin_f.iterations} steps {kin_f.wall_time:.1f} s; "
