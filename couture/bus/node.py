@@ -77,6 +77,7 @@ class Node:
         kind: str = "",
         status_period_s: float = 1.0,
         install_signals: bool = True,
+        announce: bool = True,
     ) -> None:
         self.name = name
         self.kind = kind or name
@@ -85,9 +86,15 @@ class Node:
         self.state = "starting"
         self.stop_flag = StopFlag()
         self._install_signals = install_signals
+        self._announce = announce
         self._t0 = time.monotonic()
         self.bus: Bus | None = None  # type: ignore[assignment]
         self._status_thread: threading.Thread | None = None
+
+    def announce(self) -> None:
+        """Declare the liveliness token now (for a node built with
+        ``announce=False`` that must subscribe before it is seen as live)."""
+        self.bus.declare_token(self.name)
 
     # -- stats shortcuts
     def count(self, name: str, n: int = 1) -> None:
@@ -106,7 +113,8 @@ class Node:
         self.bus = open_session(self.cfg, name=self.name)
         try:
             self._status_pub = self.bus.publisher(f"status/{self.name}", StatusMsg)
-            self.bus.declare_token(self.name)
+            if self._announce:
+                self.bus.declare_token(self.name)
             self.state = "running"
             self._status_thread = threading.Thread(target=self._status_loop, name="status", daemon=True)
             self._status_thread.start()

@@ -51,9 +51,12 @@ def main(config: RecordConfig) -> RecordStats:
     stats = RecordStats()
     t0 = time.monotonic()
     try:
-        with Node(config.name, config.bus, kind="recorder") as node:
+        # live only once subscribed: whoever waits for the recorder's liveliness
+        # may publish right away and must not be missed
+        with Node(config.name, config.bus, kind="recorder", announce=False) as node:
             for k in keys:
                 node.bus.subscribe_raw(k, lambda key, data, t: inbox.put((key, data, t)))
+            node.announce()
             last_report = time.monotonic()
             last_msgs, last_bytes = 0, 0
             deadline = t0 + config.duration_s if config.duration_s > 0 else float("inf")
