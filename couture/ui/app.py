@@ -537,7 +537,11 @@ class CoutureUI:
         if self.pattern is None:
             self.gui_export_note.content = "no pattern to export yet"
             return None
-        path = export.export_pattern(self.pattern, self.config.export_dir / f"pattern.{fmt}")
+        try:
+            path = export.export_pattern(self.pattern, self.config.export_dir / f"pattern.{fmt}")
+        except Exception as e:  # shown to the designer; the UI keeps running
+            self.gui_export_note.content = f"pattern export to {fmt} failed: {type(e).__name__}: {e}"
+            return None
         self._offer(path, client)
         return path
 

@@ -120,17 +120,6 @@ class Option:
     step: float | None = None
 
 
-_FALLBACK_OPTIONS: dict[str, list[Option]] = {
-    # Used only while couture.pattern provides no option tables (tests, demos).
-    "skirt": [
-        Option("waist", 0.70, 0.50, 1.20, "m"),
-        Option("hip", 0.96, 0.70, 1.50, "m"),
-        Option("length", 0.60, 0.30, 1.10, "m"),
-        Option("flare", 0.10, 0.0, 0.60, "m"),
-    ],
-}
-
-
 def _option_from_any(name: str, o: Any) -> Option:
     if isinstance(o, Option):
         return o
@@ -141,33 +130,14 @@ def _option_from_any(name: str, o: Any) -> Option:
 
 
 def sloper_kinds() -> list[str]:
-    try:
-        import couture.pattern as cp
+    """The slopers couture.pattern can draft."""
+    from couture.pattern import SLOPERS
 
-        for attr in ("SLOPERS", "slopers"):
-            s = getattr(cp, attr, None)
-            if s is not None:
-                return list(s() if callable(s) else s)
-    except Exception:
-        pass
-    return list(_FALLBACK_OPTIONS)
+    return list(SLOPERS)
 
 
 def sloper_options(kind: str) -> list[Option]:
-    """The option table of a sloper: couture.pattern's if it has one
-    (``options(kind)``, ``sloper_options(kind)`` or ``SLOPERS[kind].options``),
-    else a small built-in table."""
-    try:
-        import couture.pattern as cp
+    """The option table of a sloper (couture.pattern's data: default, min, max, unit)."""
+    from couture.pattern import SLOPERS
 
-        for fn_name in ("sloper_options", "options"):
-            fn = getattr(cp, fn_name, None)
-            if callable(fn):
-                table = fn(kind)
-                break
-        else:
-            table = getattr(getattr(cp, "SLOPERS")[kind], "options")
-        items = table.items() if isinstance(table, dict) else ((getattr(o, "name", ""), o) for o in table)
-        return [_option_from_any(n, o) for n, o in items]
-    except Exception:
-        return list(_FALLBACK_OPTIONS.get(kind, _FALLBACK_OPTIONS["skirt"]))
+    return [_option_from_any(o.name, o) for o in SLOPERS[kind].options]
