@@ -12,7 +12,7 @@ import os
 import numpy as np
 import pytest
 
-from browser.chromium import ARTIFACTS, available, browser_page, wait_camera, wait_until
+from browser.chromium import ARTIFACTS, available, browser_page, stable_camera, wait_camera, wait_until
 
 pytestmark = [pytest.mark.browser, pytest.mark.skipif(not available() and not os.environ.get("CI"),
                                  reason="needs /usr/bin/chromium + playwright (scripts/setup.sh --test installs them; never skipped in CI)")]
@@ -88,7 +88,7 @@ def test_drape_tug_yields_edits_with_camera(session):
     from couture.ui.geometry import CameraState
 
     page, ui, events = session["page"], session["ui"], session["events"]
-    cam = CameraState.from_viser(session["c3"].camera)
+    cam = CameraState.from_viser(stable_camera(session["c3"], page))
     mesh = session["mesh"]
     x = ui.view3d.x
     # a front vertex of the skirt (largest z), half-way down

@@ -73,3 +73,28 @@ def wait_camera(server, timeout: float = 60.0, page=None):
                 pass
         return None
     return wait_until(ready, timeout, page)
+
+
+def stable_camera(client, page=None, settle_s: float = 1.0, timeout: float = 30.0):
+    """The client's camera once it has stopped changing for ``settle_s`` (under
+    load the page may still be resizing its canvas after it first reports)."""
+    import numpy as np
+
+    def snap():
+        c = client.camera
+        return np.concatenate([np.asarray(c.position, float), np.asarray(c.wxyz, float),
+                               [float(c.fov), float(c.image_width), float(c.image_height)]])
+
+    t0 = time.time()
+    last, since = snap(), time.time()
+    while time.time() - t0 < timeout:
+        if page is not None:
+            page.wait_for_timeout(100)
+        else:
+            time.sleep(0.1)
+        now = snap()
+        if not np.allclose(now, last, rtol=0, atol=1e-9):
+            last, since = now, time.time()
+        elif time.time() - since >= settle_s:
+            return client.camera
+    raise TimeoutError("the browser camera kept changing")
