@@ -194,6 +194,13 @@ def test_b_slider_change_redrapes(live):
     live["gen_b"] = new.generation
 
 
+def _canvas_box(page, iframe: str) -> dict:
+    """Page-pixel box of the 3D canvas inside a view's iframe (the largest canvas:
+    the control sidebar takes the rest of the frame)."""
+    boxes = [b for c in page.frame_locator(iframe).locator("canvas").all() if (b := c.bounding_box())]
+    return max(boxes, key=lambda b: b["width"] * b["height"])
+
+
 def _pattern_pixels(page, design, element: str) -> np.ndarray:
     """Where a handle is in the page: the pattern view's camera (PatternView.frame_camera)
     looks straight down at the laid-out pattern's centre with a 40° vertical field of view."""
@@ -210,7 +217,7 @@ def _pattern_pixels(page, design, element: str) -> np.ndarray:
     span = float(max(hi[0] - lo[0], hi[1] - lo[1], 0.2))
     dist = 0.6 * span / np.tan(np.deg2rad(20.0)) + 0.2 - 0.003
     p = h.rest_position(pattern.panel(h.panel)) + off[h.panel]
-    box = page.locator("#pattern").bounding_box()
+    box = _canvas_box(page, "#pattern")
     f = 0.5 * box["height"] / np.tan(np.deg2rad(20.0))
     return np.array([box["x"] + 0.5 * box["width"] + f * (p[0] - c[0]) / dist,
                      box["y"] + 0.5 * box["height"] - f * (p[1] - c[1]) / dist])

@@ -9,7 +9,8 @@ Warm start, in order of preference, for a level's new mesh:
 1. the sensitivity prediction made for it (release of the last drag),
 2. this solver's previous state on the same vertices (a mesh that followed
    a pattern edit keeps its vertices, SC §6),
-3. for the fine level: the new coarse equilibrium prolongated (cascadic),
+3. for the fine level: the new coarse equilibrium prolongated (cascadic) and
+   polished (``cascadic.polish_prolongated``: fine seams closed, contact depths),
 4. the mesh's own x0 (initial placement, or state the remesher transferred).
 """
 
@@ -26,6 +27,7 @@ from couture.cloth.model import ClothModel, Scene
 from couture.mesh import GarmentMesh
 from couture.solvers import get_solver
 from couture.solvers.base import SolveResult
+from couture.solvers.cascadic import polish_prolongated
 from schemas.design import Design
 
 log = logging.getLogger(__name__)
@@ -130,8 +132,9 @@ class SolveService:
             return lm.x, "previous"
         if level == "fine" and coarse_x is not None and self.prolongation is not None:
             parent, bary = self.prolongation
-            ct = self.levels["coarse"].mesh.tris[parent]
-            return np.einsum("nk,nkd->nd", bary, coarse_x[ct]), "prolongated"
+            coarse = self.levels["coarse"]
+            x = np.einsum("nk,nkd->nd", bary, coarse_x[coarse.mesh.tris[parent]])
+            return polish_prolongated(lm.model, x, coarse.model, coarse_x, parent, bary), "prolongated"
         return lm.mesh.x0, "placement"
 
     def run(
