@@ -204,3 +204,75 @@ def test_bus_adapter_roundtrip(tmp_path):
             assert patterns[i].generation == max(p.generation for p in patterns[:i]) + 1
     finally:
         ui.stop()
+
+
+@pytest.mark.slow
+def test_adapter_solver_choice_and_record_toggle(tmp_path):
+    """On a real loopback bus: with two solvers publishing, choosing one shows only its
+    drapes (its newest at once); the record toggle starts a recorder process that
+    writes what crosses the bus into an MCAP file, finalized when toggled off."""
+    from mcap.reader import make_reader
+
+    from couture.bus import BusConfig, Node, open_session
+    from nodes.ui.main import UIAdapter
+    from schemas.convert import mesh_to_msg
+    from schemas.messages import DrapeMsg, decode
+
+    port = free_port()
+    session = f"uirec{port}"
+    bus_cfg = BusConfig(session=session, listen=[f"tcp/127.0.0.1:{port}"])
+    ui = CoutureUI(UIConfig(port=free_port(), export_dir=tmp_path, show_body=False, draft_locally=False))
+    ui.start()
+    adapter = None
+    try:
+        with Node("ui", bus_cfg, kind="ui", install_signals=False) as node, \
+                open_session(BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[])) as peer:
+            adapter = UIAdapter(node, ui, "ui", bus_config=bus_cfg, record_dir=tmp_path / "rec")
+            mesh, pattern = demo_sheet(300)
+            mesh_pub = peer.publisher("mesh/fine", type(mesh_to_msg(mesh)))
+            drape_pub = peer.publisher("drape/fine", DrapeMsg)
+            time.sleep(0.5)
+            ui.show_pattern(pattern)
+            mesh_pub.put(mesh_to_msg(mesh))
+            assert wait_for(lambda: "fine" in ui.meshes)
+
+            def drape(solver, dz, gen):
+                return DrapeMsg(level="fine", x=mesh.x0 + [0.0, 0.0, dz], residual=1e-5, solver=solver,
+                                method=solver.split("-")[1], generation=gen, converged=True)
+
+            def on_screen(dz):
+                return ui.view3d.x is not None and np.allclose(ui.view3d.x, mesh.x0 + [0.0, 0.0, dz])
+
+            drape_pub.put(drape("solver-newton", 0.02, 1))
+            drape_pub.put(drape("solver-kinetic", 0.01, 1))
+            assert wait_for(lambda: on_screen(0.01))  # 'any': the newest drape shows
+            ui.select_solver("solver-newton")  # what the solver dropdown calls
+            assert wait_for(lambda: on_screen(0.02)), "choosing a solver did not show its newest drape"
+            drape_pub.put(drape("solver-kinetic", 0.03, 2))
+            drape_pub.put(drape("solver-newton", 0.04, 2))
+            assert wait_for(lambda: on_screen(0.04))
+            drape_pub.put(drape("solver-kinetic", 0.05, 3))
+            time.sleep(1.0)
+            assert on_screen(0.04), "a drape of the solver not chosen replaced the chosen one"
+
+            # record toggle: a recorder process joins this bus and writes an MCAP file
+            ui.on_record(True)  # what the record checkbox calls
+            path = adapter.record_path
+            assert path is not None and adapter.recorder.poll() is None
+            assert wait_for(lambda: adapter.live.get("ui-recorder"), 30), "the recorder never came up"
+            for k in range(5):
+                drape_pub.put(drape("solver-newton", 0.001 * k, 10 + k))
+            time.sleep(1.0)
+            ui.on_record(False)
+            assert adapter.recorder is None and "recorded" in ui.gui_record_note.content
+            with open(path, "rb") as f:
+                reader = make_reader(f)
+                schemas = {s.name for s in reader.get_summary().schemas.values()}
+                gens = [decode(m.data, DrapeMsg).generation
+                        for _, ch, m in reader.iter_messages() if ch.topic.endswith("drape/fine")]
+            assert "couture/drape/v1" in schemas, schemas
+            assert set(range(10, 15)) <= set(gens), f"recorded generations {gens}, expected 10..14"
+    finally:
+        if adapter is not None:
+            adapter.close()
+        ui.stop()

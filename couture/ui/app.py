@@ -113,12 +113,12 @@ class CoutureUI:
         self.server3d = viser.ViserServer(host=c.host, port=c.port + 1, label="couture 3D", verbose=False)
         self.server2d = viser.ViserServer(host=c.host, port=self.server3d.get_port() + 1, label="couture pattern",
                                           verbose=False)
-        for s, layout in ((self.server3d, "fixed"), (self.server2d, "floating")):
-            # 3D: a fixed sidebar, the canvas takes the rest of the width, so the panel never
-            # covers the mannequin (floating, it hid an arm); the wide pattern layout keeps
-            # the whole width and its small floating tool panel
-            s.gui.configure_theme(show_share_button=False, control_width="medium", show_logo=False,
-                                  control_layout=layout)
+        for s in (self.server3d, self.server2d):
+            s.gui.configure_theme(show_share_button=False, control_width="medium", show_logo=False)
+        # 3D: controls docked right, the canvas takes the rest of the width, so the panel
+        # never covers the mannequin (floating, it hid an arm); the wide pattern layout
+        # keeps the whole width and its small floating tool panel
+        self.server3d.gui.main_panel.dock_right()
         self.view3d = DrapeView(self.server3d, n_bands=c.n_bands, show_body=c.show_body)
         self.view2d = PatternView(self.server2d)
         self.view3d.on_tug = self._on_tug
