@@ -209,7 +209,8 @@ def test_bus_adapter_roundtrip(tmp_path):
 @pytest.mark.slow
 def test_adapter_solver_choice_and_record_toggle(tmp_path):
     """On a real loopback bus: with two solvers publishing, choosing one shows only its
-    drapes (its newest at once); the record toggle starts a recorder process that
+    drapes (its newest at once); a sensitivity node that leaves turns on the
+    "predictions are off" note; the record toggle starts a recorder process that
     writes what crosses the bus into an MCAP file, finalized when toggled off."""
     from mcap.reader import make_reader
 
@@ -254,6 +255,14 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
             drape_pub.put(drape("solver-kinetic", 0.05, 3))
             time.sleep(1.0)
             assert on_screen(0.04), "a drape of the solver not chosen replaced the chosen one"
+
+            # a sensitivity node comes and goes (a real liveliness token on the peer's bus):
+            # while it is gone the status says predictions are off
+            off = "Predictions are off"
+            with Node("sensitivity", BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[]),
+                      kind="sensitivity", install_signals=False):
+                assert wait_for(lambda: adapter.live.get("sensitivity") and not any(off in n for n in ui.notes), 20)
+            assert wait_for(lambda: any(off in n for n in ui.notes), 20), ui.notes
 
             # record toggle: a recorder process joins this bus and writes an MCAP file
             ui.on_record(True)  # what the record checkbox calls
