@@ -23,4 +23,7 @@ else
   echo "[setup] installing couture"
   .venv/bin/python -m pip install -q -e .
 fi
+# the fast direct solver (MKL PARDISO, ~700 MB): optional, the solvers fall back to SciPy's SuperLU
+echo "[setup] installing the PARDISO extra (couture[fast])"
+.venv/bin/python -m pip install -q -e '.[fast]' || echo "[setup] couture[fast] unavailable here: direct solves use SciPy SuperLU"
 echo "[setup] done: $(.venv/bin/couture --version 2>/dev/null || echo couture installed)"
