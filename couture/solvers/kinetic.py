@@ -96,7 +96,7 @@ class KineticSolver:
         backend: str = "auto",
         cg_rtol: float = 1e-3,
         cg_maxiter: int = 300,
-        refactor_iters: int = 20,
+        refactor_iters: int = 4,
         stall_window: int = 1500,
         max_displacement: float | None = None,
         max_step: float | None = None,
@@ -112,8 +112,8 @@ class KineticSolver:
         cg_rtol relative CG tolerance (inexact steps are fine: only the
         trajectory changes, not the equilibrium); cg_maxiter CG cap per step;
         refactor_iters: CG iterations above which the direct preconditioner is
-        refreshed (at least; more where a factorization costs more than a
-        quarter of that many iterations); stall_window steps without 1% progress before giving up;
+        refreshed (at least; more where a factorization costs more than
+        twice that many iterations); stall_window steps without 1% progress before giving up;
         max_displacement [m] per-step vertex motion that counts as blow-up
         (default: 10x the initial bounding-box diagonal); max_step [m] largest
         vertex move of an accepted adaptive step (default 2% of the diagonal:
@@ -170,9 +170,9 @@ class KineticSolver:
         fac = getattr(self, "_factor", None)
         if fac is not None:
             # amortization: keep the factorization while a solve with it costs less than
-            # a quarter of refactoring (at 10k vertices a factorization is ~2 s and a CG
-            # iteration ~25 ms, so ~20 iterations would refactor every step)
-            cap = max(self.refactor_iters, int(0.25 * self._t_factor / max(self._t_iter, 1e-6)))
+            # half a refactorization (10k vertices with PARDISO: a factorization ~0.13 s,
+            # a CG iteration ~15 ms; with SuperLU ~1.5 s and ~25 ms)
+            cap = max(self.refactor_iters, int(0.5 * self._t_factor / max(self._t_iter, 1e-6)))
             tp = time.perf_counter()
             dv, it, rr = pcg_factor(A, b, x0, fac, self.cg_rtol, cap)
             if it:

@@ -89,6 +89,7 @@ class NewtonSolver:
         self.friction_every = max(1, int(friction_every))
         self.friction_rounds = friction_rounds
         self._cache = None
+        self._factor = None  # kept across solves on one model: its symbolic analysis is reused
 
     def _system(self, model, K):
         c = self._cache
@@ -97,6 +98,7 @@ class NewtonSolver:
         order = seam_first_order(model.n, np.asarray(model.free, bool))
         system = ReducedSystem(K, np.asarray(model.mass, np.float64), np.asarray(model.free, bool), order)
         self._cache = (model, system)
+        self._factor = None
         return system
 
     def solve(
@@ -124,7 +126,7 @@ class NewtonSolver:
         max_step = self.max_step or 0.25 * scale
         h = self.h0
         watch = Watch(self.stall_window)
-        factor = None
+        factor = self._factor
         diag = ""
         converged = False
         it = 0
@@ -285,6 +287,7 @@ class NewtonSolver:
 
         stats["steps"] = it
         stats["levenberg_h"] = h
+        self._factor = factor
         wall = time.perf_counter() - t_start
         if not finite(x):  # pragma: no cover - guarded above
             x = pinned_positions(model, x0)
