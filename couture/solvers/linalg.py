@@ -15,7 +15,15 @@ Direct backends (``factorize(A, backend=...)``), best first under ``'auto'``:
 
 from __future__ import annotations
 
+import os
 import time
+
+# MKL's conditional numerical reproducibility: PARDISO's threaded factorization
+# otherwise differs in the last bits from run to run (measured: 1 of 8 solves),
+# and recordings replayed as regression tests need identical solves. AUTO keeps
+# the CPU's fast code path (run to run on one machine; COMPATIBLE would be the
+# same on every CPU but measured 1.8x slower). Read when MKL loads, so set here.
+os.environ.setdefault("MKL_CBWR", "AUTO")
 
 import numpy as np
 import scipy.sparse as sp
