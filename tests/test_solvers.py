@@ -383,6 +383,38 @@ def test_direct_backends(backend):
     assert np.linalg.norm(A @ f.solve(b) - b) <= 1e-8 * np.linalg.norm(b)
 
 
+@pytest.mark.skipif("pardiso32" not in available_backends(), reason="pypardiso (couture[fast]) not installed")
+def test_single_precision_pardiso_refines_to_the_asked_tolerance():
+    system = _seam_system(8)
+    A = system.matrix()
+    b = np.random.default_rng(5).normal(size=system.nr)
+    f = factorize(A, "pardiso32")
+    raw = f.solve(b, rtol=1.0)  # the single-precision solve as it is (a preconditioner)
+    rel = lambda x: np.linalg.norm(A @ x - b) / np.linalg.norm(b)  # noqa: E731
+    assert 1e-9 < rel(raw) < 1e-1  # single precision: not a double-accurate solve
+    assert rel(f.solve(b, rtol=1e-4)) <= 1e-4
+    assert rel(f.solve(b)) <= 1e-10 and f.refinements >= 1 and not f.double_fallback
+    # ill-conditioned SPD (Hilbert 9x9, cond ~5e11): single precision cannot
+    # reach 1e-10, so the factor switches to double and still answers
+    n = 9
+    H = sp.csr_matrix(1.0 / (np.arange(n)[:, None] + np.arange(n)[None, :] + 1.0))
+    c = np.ones(n)
+    g = factorize(H, "pardiso32")
+    y = g.solve(c)
+    assert g.double_fallback
+    assert np.linalg.norm(H @ y - c) <= 1e-8 * np.linalg.norm(c)
+
+
+def test_auto_backend_is_exact_unless_approximate_is_allowed():
+    from couture.solvers.linalg import resolve_backend
+
+    assert resolve_backend("auto") != "pardiso32"
+    want = "pardiso32" if "pardiso32" in available_backends() else resolve_backend("auto")
+    assert resolve_backend("auto", approximate=True) == want
+    with pytest.raises(ValueError, match="unknown backend"):
+        resolve_backend("umfpack")
+
+
 def test_reduced_system_matches_slicing():
     m = cloth_hanging_sheet(6, 6, size=0.3)
     K = m.stiffness(m.mesh.x0 + 0.01)

@@ -57,6 +57,11 @@ class Watch:
         self.mark = np.inf
         self.mark_at = 0
 
+    def progress(self, it: int) -> None:
+        """Progress seen by another measure (a solver's energy): restart the window."""
+        self.mark = min(self.mark, self.best)
+        self.mark_at = it
+
     def check(self, it: int, r: float) -> str:
         if not np.isfinite(r):
             return f"diverged: non-finite residual at iteration {it}"
