@@ -387,31 +387,9 @@ class _PardisoFactor(Factor):
         refinement: 1e-6 after 7). No convergence within ``max_refine`` steps
         (a matrix too ill-conditioned for single precision) refactors in double
         precision, for good on this factor object."""
-        nb = float(np.linalg.norm(b))
-        self.refinements = 0
-        r = b - self._A @ x
-        nr = float(np.linalg.norm(r))
-        if nr <= rtol * nb:
+        x, self.refinements, rr = pcg_factor(self._A, b, x, self, rtol, self.max_refine)
+        if rr <= rtol and np.all(np.isfinite(x)):
             return x
-        z = self._call(33, self._data, r).astype(np.float64)
-        p = z.copy()
-        rz = float(r @ z)
-        while self.refinements < self.max_refine and np.isfinite(nr):
-            Ap = self._A @ p
-            pAp = float(p @ Ap)
-            if not pAp > 0.0:
-                break
-            a = rz / pAp
-            x += a * p
-            r -= a * Ap
-            self.refinements += 1
-            nr = float(np.linalg.norm(r))
-            if nr <= rtol * nb:
-                return x
-            z = self._call(33, self._data, r).astype(np.float64)
-            rz_new = float(r @ z)
-            p = z + (rz_new / rz) * p
-            rz = rz_new
         # not converged: double precision from now on
         self._to_double()
         self._call(22, self._data)
