@@ -408,7 +408,7 @@ class _PardisoFactor(Factor):
         try:
             if self._pattern is not None:
                 self._call(-1, np.zeros(1))
-        except Exception:
+        except Exception:  # noqa: BLE001 - at interpreter exit MKL or ctypes may be gone: nothing to release then
             pass
 
 
