@@ -30,6 +30,17 @@ from schemas import DrapeMsg
 from schemas.design import Design, Resolution, Sloper
 
 
+def _wait_counter(client: Client, counter: str, timeout: float, poll: float) -> None:
+    """Wait (at most ``timeout`` s) until the sensitivity node's status counts
+    at least one ``counter``; the bench goes on either way."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        st = client.status.get("sensitivity")
+        if st is not None and st.counters.get(counter, 0) >= 1:
+            return
+        time.sleep(poll)
+
+
 def run(fine_vertices: int, drags: int, hz: float, solver: str = "newton", timeout: float = 300.0) -> dict:
     nodes = supervisor.default_nodes(solvers=[solver], ui=False)
     cfg = supervisor.SupervisorConfig(
@@ -44,12 +55,7 @@ def run(fine_vertices: int, drags: int, hz: float, solver: str = "newton", timeo
         print(f"[e2e] {fine_vertices}: first fine drape after {time.monotonic() - t0:.1f} s "
               f"(residual {drape.residual:.2e})", file=sys.stderr)
         # the sensitivity node refactors at that drape in idle time
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            st = client.status.get("sensitivity")
-            if st is not None and st.counters.get("refactors", 0) >= 1:
-                break
-            time.sleep(0.2)
+        _wait_counter(client, "refactors", timeout=120, poll=0.2)
         recv: dict[float, int] = {}
         lock = threading.Lock()
 
@@ -61,12 +67,7 @@ def run(fine_vertices: int, drags: int, hz: float, solver: str = "newton", timeo
 
         client.bus.subscribe("drape/predicted", on_pred, DrapeMsg)
         press = client.send_edit("param:length", [0.0, 0.0], phase="press")
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            st = client.status.get("sensitivity")
-            if st is not None and st.counters.get("press_columns", 0) >= 1:
-                break
-            time.sleep(0.05)
+        _wait_counter(client, "press_columns", timeout=60, poll=0.05)
         sent: dict[float, int] = {}
         period = 1.0 / hz
         next_t = time.perf_counter()

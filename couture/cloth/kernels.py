@@ -438,6 +438,46 @@ def anchor_stiffness(anchored, normal, k_t, diag_slots, blk_base, blk_stride, da
 # --------------------------------------------------------------------------
 
 
+@njit(cache=True, inline="always")
+def _grid_cell(point, origin, spacing, lim, dirx, idx, fr):
+    """Grid cell idx (lower node per axis) and fraction fr of ``point``,
+    clamped to the grid box; returns the squared distance from the point to
+    the box (0 inside) and sets dirx to the offset from the box."""
+    extra2 = 0.0
+    for d in range(3):
+        q = (point[d] - origin[d]) / spacing
+        hi = lim[d] - 1.0
+        dirx[d] = 0.0
+        if q < 0.0:
+            dirx[d] = q * spacing
+            q = 0.0
+        elif q > hi:
+            dirx[d] = (q - hi) * spacing
+            q = hi
+        extra2 += dirx[d] * dirx[d]
+        i = min(int(np.floor(q)), lim[d] - 2)
+        idx[d] = i
+        fr[d] = q - i
+    return extra2
+
+
+@njit(cache=True, inline="always")
+def _write_phi_grad(p, val, gx, gy, gz, extra2, dirx, phi, grad):
+    """Store the interpolant's value and gradient for point p; outside the
+    grid box add the distance to the box and point the gradient away from it."""
+    if extra2 > 0.0:
+        ex = np.sqrt(extra2)
+        phi[p] = val + ex
+        grad[p, 0] = dirx[0] / ex
+        grad[p, 1] = dirx[1] / ex
+        grad[p, 2] = dirx[2] / ex
+    else:
+        phi[p] = val
+        grad[p, 0] = gx
+        grad[p, 1] = gy
+        grad[p, 2] = gz
+
+
 @njit(cache=True)
 def trilinear_phi_grad(points, origin, spacing, values, phi, grad):
     """Trilinear interpolation of a grid SDF ``values`` (nx, ny, nz) with
@@ -451,24 +491,7 @@ def trilinear_phi_grad(points, origin, spacing, values, phi, grad):
     idx = np.empty(3, np.int64)
     fr = np.empty(3)
     for p in range(points.shape[0]):
-        extra2 = 0.0
-        dirx[:] = 0.0
-        for d in range(3):
-            q = (points[p, d] - origin[d]) / spacing
-            hi = lim[d] - 1.0
-            if q < 0.0:
-                extra2 += (q * spacing) ** 2
-                dirx[d] = q * spacing
-                q = 0.0
-            elif q > hi:
-                extra2 += ((q - hi) * spacing) ** 2
-                dirx[d] = (q - hi) * spacing
-                q = hi
-            i = int(np.floor(q))
-            if i > lim[d] - 2:
-                i = lim[d] - 2
-            idx[d] = i
-            fr[d] = q - i
+        extra2 = _grid_cell(points[p], origin, spacing, lim, dirx, idx, fr)
         i, j, k = idx[0], idx[1], idx[2]
         fx, fy, fz = fr[0], fr[1], fr[2]
         c000 = values[i, j, k]
@@ -490,17 +513,7 @@ def trilinear_phi_grad(points, origin, spacing, values, phi, grad):
         gy = ((c10 - c00) * (1 - fz) + (c11 - c01) * fz) / spacing
         gx = (((c100 - c000) * (1 - fy) + (c110 - c010) * fy) * (1 - fz)
               + ((c101 - c001) * (1 - fy) + (c111 - c011) * fy) * fz) / spacing
-        if extra2 > 0.0:
-            ex = np.sqrt(extra2)
-            phi[p] = val + ex
-            grad[p, 0] = dirx[0] / ex
-            grad[p, 1] = dirx[1] / ex
-            grad[p, 2] = dirx[2] / ex
-        else:
-            phi[p] = val
-            grad[p, 0] = gx
-            grad[p, 1] = gy
-            grad[p, 2] = gz
+        _write_phi_grad(p, val, gx, gy, gz, extra2, dirx, phi, grad)
 
 
 @njit(cache=True, inline="always")
@@ -616,6 +629,7 @@ def bspline_phi_grad(points, origin, spacing, values, phi, grad):
     lim = (nx, ny, nz)
     dirx = np.zeros(3)
     base = np.empty(3, np.int64)
+    fr = np.empty(3)
     wx = np.empty(4)
     wy = np.empty(4)
     wz = np.empty(4)
@@ -626,30 +640,10 @@ def bspline_phi_grad(points, origin, spacing, values, phi, grad):
     iy = np.empty(4, np.int64)
     iz = np.empty(4, np.int64)
     for p in range(points.shape[0]):
-        extra2 = 0.0
-        dirx[:] = 0.0
-        for d in range(3):
-            q = (points[p, d] - origin[d]) / spacing
-            hi = lim[d] - 1.0
-            if q < 0.0:
-                extra2 += (q * spacing) ** 2
-                dirx[d] = q * spacing
-                q = 0.0
-            elif q > hi:
-                extra2 += ((q - hi) * spacing) ** 2
-                dirx[d] = (q - hi) * spacing
-                q = hi
-            i = int(np.floor(q))
-            if i > lim[d] - 2:
-                i = lim[d] - 2
-            base[d] = i
-            t = q - i
-            if d == 0:
-                _bspline3(t, wx, dx)
-            elif d == 1:
-                _bspline3(t, wy, dy)
-            else:
-                _bspline3(t, wz, dz)
+        extra2 = _grid_cell(points[p], origin, spacing, lim, dirx, base, fr)
+        _bspline3(fr[0], wx, dx)
+        _bspline3(fr[1], wy, dy)
+        _bspline3(fr[2], wz, dz)
         for a in range(4):
             ix[a] = min(max(base[0] - 1 + a, 0), nx - 1)
             iy[a] = min(max(base[1] - 1 + a, 0), ny - 1)
@@ -670,14 +664,4 @@ def bspline_phi_grad(points, origin, spacing, values, phi, grad):
                 gx += dx[a] * wy[b] * sv
                 gy += wx[a] * dy[b] * sv
                 gz += wx[a] * wy[b] * sz
-        if extra2 > 0.0:
-            ex = np.sqrt(extra2)
-            phi[p] = val + ex
-            grad[p, 0] = dirx[0] / ex
-            grad[p, 1] = dirx[1] / ex
-            grad[p, 2] = dirx[2] / ex
-        else:
-            phi[p] = val
-            grad[p, 0] = gx / spacing
-            grad[p, 1] = gy / spacing
-            grad[p, 2] = gz / spacing
+        _write_phi_grad(p, val, gx / spacing, gy / spacing, gz / spacing, extra2, dirx, phi, grad)
