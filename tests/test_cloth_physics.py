@@ -195,9 +195,44 @@ def test_seams_close_the_gap_between_panels():
         return np.linalg.norm(x[e] - (1 - w)[:, None] * x[a] - w[:, None] * x[b], axis=1)
 
     assert gaps(mesh.x0).min() > 0.015
-    x, hist = newton(model, mesh.x0, tol=1e-12, max_iters=60)
-    # no gravity: the relative residual's denominator is the (here tiny) internal force,
-    # so check the free forces in newtons instead
+    x, hist = newton(model, mesh.x0, tol=1e-8, max_iters=60)
+    # no gravity: the residual is measured against the forces in balance, here
+    # at least mu sqrt(A) (a unit strain's force) since the closed seams carry almost none
+    assert hist[-1] < 1e-8
+    assert model.residual_denominator(x) == pytest.approx(model.mu * np.sqrt(model.tri_area.sum()))
     assert np.abs(model.forces(x)[model.free]).max() < 1e-9
     # the jittered edges differ slightly in length: what is left is seam force / k_s
     assert gaps(x).max() < 1e-5
+
+
+def test_residual_without_gravity_is_scaled_by_the_forces_in_balance():
+    """Without gravity the relative residual compares the free force with the
+    forces that balance each other (each term's own, pin reactions included),
+    never with the free force itself (a ratio of 1 at every x): a strip pulled
+    by its pinned ends has a residual of ~0 at the closed-form equilibrium and
+    grows with a perturbation; an unloaded sheet measures against mu sqrt(A)."""
+    Eh, nu, L, W, s_ = 200.0, 0.3, 0.2, 0.05, 1.1
+    mesh = grid_sheet(L, W, 17, 6)
+    ends = np.nonzero(np.isclose(mesh.X[:, 0], 0) | np.isclose(mesh.X[:, 0], L))[0]
+    mesh.pinned = ends.astype(np.int32)
+    model = ClothModel(mesh, Fabric(stretch_stiffness=Eh, poisson_ratio=nu, bend_stiffness=1e-9), Scene(gravity=False))
+    assert "gravity" not in model.terms and not model.residual_scale_constant
+    Gxx = 0.5 * (s_**2 - 1)
+    # pinned ends hold the lateral contraction too, so solve for the equilibrium
+    x0 = np.column_stack([s_ * mesh.X[:, 0], mesh.X[:, 1], np.zeros(model.n)])
+    x, hist = newton(model, x0, tol=1e-11, max_iters=40)
+    assert hist[0] > 1e-3 and hist[-1] < 1e-11
+    reaction = np.linalg.norm(model.forces(x)[ends])
+    assert reaction > 0.5 * s_ * Eh * Gxx * W  # the ends carry about the 1D load
+    assert model.residual_denominator(x) >= reaction
+    rng = np.random.default_rng(0)
+    xp = x + rng.normal(scale=1e-4 * L, size=x.shape) * model.free[:, None]
+    assert model.relative_residual(xp) > 1e3 * hist[-1]
+
+    free_sheet = ClothModel(grid_sheet(L, W, 17, 6), Fabric(stretch_stiffness=Eh), Scene(gravity=False))
+    X3 = np.column_stack([mesh.X, np.zeros(model.n)])
+    assert free_sheet.relative_residual(X3 + [0.3, -0.1, 2.0]) < 1e-12  # a rigid motion of the rest state
+    strained = X3.copy()
+    strained[:, 0] *= 1.001
+    r = free_sheet.relative_residual(strained)
+    assert 5e-4 < r < 2e-3  # about the strain (0.1 %) it holds

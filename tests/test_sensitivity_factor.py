@@ -23,8 +23,7 @@ def resolve(model, X, x_start, tol=1e-10):
 def resolve_no_gravity(model, X, x_start, force_tol=1e-10):
     """Newton with the null modes gauged out (the factor as a linear solver:
     the forces of this scene have no component along its free modes). The
-    project's Newton crawls on the singular K; and without gravity and pins
-    ``relative_residual`` is identically 1, so converge on an absolute force."""
+    project's Newton crawls on the singular K, so converge on an absolute force."""
     model.set_rest_positions(X)
     x = np.array(x_start, dtype=np.float64)
     for _ in range(30):

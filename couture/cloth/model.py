@@ -453,17 +453,31 @@ class ClothModel:
         """(3n,) bool, False for the dofs of pinned vertices."""
         return np.repeat(self.free, 3)
 
-    def relative_residual(self, x: np.ndarray) -> float:
-        """||R_free|| / ||F_gravity|| (couture.solvers.base); without gravity
-        the denominator is max(||F_internal||, 1e-12), F_internal = all
-        non-gravity forces on all vertices."""
-        f = self.forces(x)
-        r = float(np.linalg.norm(f[self.free]))
+    @property
+    def residual_scale_constant(self) -> bool:
+        """True when ``residual_denominator`` does not depend on x (a scene with
+        gravity), so solvers may compute it once (couture.solvers.common)."""
+        return "gravity" in self.terms
+
+    def residual_denominator(self, x: np.ndarray) -> float:
+        """The force the residual is measured against [N]: ||F_gravity|| with
+        gravity. Without it, the forces that balance each other at equilibrium,
+        sqrt(sum over terms of ||f_term||²) on all vertices (pin reactions
+        included), but at least mu·sqrt(A), the membrane force of a unit
+        strain over the rest area A: an unloaded scene (no gravity, no pins,
+        nothing stretched) then reports about the strain its forces amount to,
+        where the internal force alone would give a ratio of 1 at every x."""
         if "gravity" in self.terms:
-            den = float(np.linalg.norm(self.gravity_force))
-        else:
-            den = max(float(np.linalg.norm(f)), 1e-12)
-        return r / den
+            return float(np.linalg.norm(self.gravity_force))
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        total = sum(float(np.sum(self.forces(x, [t]) ** 2)) for t in self.terms)
+        floor = self.mu * float(np.sqrt(self.tri_area.sum()))
+        return max(float(np.sqrt(total)), floor, 1e-300)
+
+    def relative_residual(self, x: np.ndarray) -> float:
+        """||R_free|| / ``residual_denominator(x)`` (couture.solvers.base)."""
+        f = self.forces(x)
+        return float(np.linalg.norm(f[self.free])) / self.residual_denominator(x)
 
     def contact_normal_force(self, pen: np.ndarray) -> np.ndarray:
         """Contact force magnitude [N] per vertex for penetrations ``pen`` [m] of

@@ -8,8 +8,9 @@ return NaN and never hang: iteration and time caps stop them with a
 Relative force residual, used everywhere (messages, benchmarks, tests):
 ``||R_free||_2 / ||F_gravity||_2`` where R = F - Q is the force residual on
 free (unpinned) degrees of freedom and F_gravity the total gravity force vector
-(all vertices); for a scene without gravity the denominator is
-``max(||F_internal||_2, 1e-12)`` (see ``ClothModel.relative_residual``).
+(all vertices); for a scene without gravity the denominator is the norm of
+the forces in balance, sqrt(sum over terms of ||f_term||²), at least mu·sqrt(A),
+the membrane force of a unit strain (see ``ClothModel.residual_denominator``).
 """
 
 from __future__ import annotations

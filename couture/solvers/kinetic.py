@@ -75,7 +75,7 @@ import time
 import numpy as np
 
 from .base import ProgressCallback, SolveResult
-from .common import ResidualScale, Watch, energy_and_forces, finite, pinned_positions
+from .common import ResidualScale, Watch, energy_and_forces, energy_round_off, finite, pinned_positions
 from .linalg import (IC0, FactorizationError, ReducedSystem, factorize, pcg, pcg_factor, resolve_backend,
                      seam_first_order)
 
@@ -220,7 +220,7 @@ class KineticSolver:
         stats = dict(assembly_s=0.0, linear_solve_s=0.0, precond_s=0.0, solve_s=0.0, friction_s=0.0, steps=0,
                      cg_iterations=0, cg_max=0, cg_unconverged=0, velocity_resets=0, rejected_steps=0, backtracks=0, clamped_steps=0,
                      factorizations=0, ic_shift=0.0, ic_retries=0, jacobi_fallbacks=0, direct_failures=0,
-                     friction_checks=0, friction_excess_N=0.0, forced_steps=0, dt_final=dt,
+                     friction_checks=0, friction_excess_N=0.0, forced_steps=0, round_off_steps=0, dt_final=dt,
                      dt_max_reached=dt, preconditioner=self.preconditioner)
         history: list[tuple[float, float]] = []
         diag = ""
@@ -315,6 +315,7 @@ class KineticSolver:
                 break
             K = model.stiffness(x)
             system, pre = self._system(model, K)
+            e_noise = None
             Kv = K @ v.ravel()
             ke0 = 0.5 * float(np.sum(mass[:, None] * v * v))
             stats["assembly_s"] += time.perf_counter() - ta
@@ -373,6 +374,16 @@ class KineticSolver:
                     ke_new = alpha * alpha * 0.5 * float(np.sum(mass[:, None] * v_new * v_new))
                     if np.isfinite(E_new + ke_new) and E_new + ke_new <= total0 + 1e-12 * (abs(E) + ke0 + 1e-30):
                         ok = True
+                        break
+                    # near equilibrium the change is below the energy's round-off (1e-9 of
+                    # the terms' magnitudes, which cancel in E): the energy cannot rank the
+                    # two states, so rank by the force residual (as Newton does)
+                    if e_noise is None:
+                        e_noise = energy_round_off(model, x, E)
+                    if (np.isfinite(E_new) and abs(E_new + ke_new - total0) <= e_noise and finite(f_new)
+                            and res_scale(x + alpha * step, f_new) < r):
+                        ok = True
+                        stats["round_off_steps"] += 1
                         break
                     alpha *= 0.5
                     stats["backtracks"] += 1

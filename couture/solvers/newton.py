@@ -31,21 +31,8 @@ import time
 import numpy as np
 
 from .base import ProgressCallback, SolveResult
-from .common import ResidualScale, Watch, finite, pinned_positions, true_stiffness
+from .common import ResidualScale, Watch, energy_round_off, finite, pinned_positions, true_stiffness
 from .linalg import FactorizationError, ReducedSystem, factorize, resolve_backend, seam_first_order
-
-
-def _energy_round_off(model, x: np.ndarray, E: float) -> float:
-    """Round-off of energy differences at x [J]: 1e-9 of the terms' magnitudes.
-
-    Measured on the default 10k skirt near equilibrium: membrane 0.032 J,
-    gravity -0.027 J, and differences below ~1e-11 J are noise (20k triangles'
-    Green strains FᵀF - I cancel), while a full Newton step that takes the
-    residual from 7e-3 to 7e-8 lowers E by 3e-13 J."""
-    terms = getattr(model, "terms", None)
-    if not terms:
-        return 1e-9 * (abs(E) + 1e-300)
-    return 1e-9 * sum(abs(model.energy(x, [t])) for t in terms)
 
 
 class NewtonSolver:
@@ -253,7 +240,7 @@ class NewtonSolver:
                     # most 0.9 of its start (strong-Wolfe curvature: the step does not
                     # overshoot the line minimum) or the residual drops
                     if e_noise is None:
-                        e_noise = _energy_round_off(model, x, E)
+                        e_noise = energy_round_off(model, x, E)
                     if np.isfinite(E_try) and alpha * slope <= e_noise:
                         f_try = model.forces(x_try)
                         if finite(f_try) and (abs(float(np.vdot(f_try, P))) <= 0.9 * slope
