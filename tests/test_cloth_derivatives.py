@@ -134,7 +134,11 @@ def test_contact_plane_exact_derivatives():
     fd_hessian_check(model, x, "contact", h=1e-7)
 
 
-def test_contact_sphere_gauss_newton_plus_curvature():
+def test_contact_sphere_exact_hessian_and_its_projection():
+    """On a sphere the exact contact Hessian is S n nᵀ - F (I - n nᵀ)/r: central
+    differences of the forces match ``stiffness(project=False)``; the projected
+    one is each vertex block's PSD part, so it differs from the exact one by
+    the convex body's negative curvature term and is PSD."""
     c = np.array([0.05, 0.04, -0.2])
     body = SphereBody(center=c, radius=0.2005)
     model, x = model_and_state(Scene(body=body, contact_offset=0.01))
@@ -142,18 +146,43 @@ def test_contact_sphere_gauss_newton_plus_curvature():
     inside = phi < 0.01
     assert inside.sum() > 5
     fd_gradient_check(model, x, "contact")
-    # FD Hessian = GN part + F(pen) * Hess(phi), Hess(phi) = (I - n n^T) / r for a sphere,
-    # F the contact force magnitude (kernels.contact_law)
-    h = 1e-7
-    rng = np.random.default_rng(3)
-    d = rng.normal(size=x.shape)
-    fd = -(model.forces(x + h * d, ["contact"]) - model.forces(x - h * d, ["contact"])) / (2 * h)
-    gn = (model.stiffness(x, ["contact"]) @ d.reshape(-1)).reshape(-1, 3)
-    r = np.linalg.norm(x - c, axis=1)
+    fd_hessian_check(model, x, "contact", h=1e-7, rtol=1e-5)
+    exact = model.stiffness(x, ["contact"], project=False).toarray()
+    proj = model.stiffness(x, ["contact"], project=True).toarray()
+    assert np.linalg.eigvalsh(proj).min() > -1e-9 * np.abs(proj).max()
+    assert np.linalg.eigvalsh(exact).min() < -1e-6 * np.abs(exact).max()  # the curvature term is there
+    # the difference is exactly the clamped negative part: -F/r on the tangent plane of in-contact vertices
     pen = np.maximum(0.01 - phi, 0)
-    dt = d - np.einsum("ij,ij->i", d, grad)[:, None] * grad
-    curv = (model.contact_normal_force(pen) / r)[:, None] * -dt
-    np.testing.assert_allclose(fd, gn + curv, atol=1e-6 * np.abs(gn).max())
+    r = np.linalg.norm(x - c, axis=1)
+    neg = -(model.contact_normal_force(pen) / r)
+    assert np.trace(exact - proj) == pytest.approx(2 * neg[inside].sum(), rel=1e-9)
+
+
+def test_contact_grid_sdf_exact_hessian():
+    """The mannequin's B-spline SDF: ``phi_hess`` is the derivative of ``phi_grad``,
+    and the exact contact Hessian over a grid body matches central differences
+    (the curvature term included: the Gauss-Newton part alone does not)."""
+    from couture.cloth.body import GridSDFBody
+
+    rng = np.random.default_rng(4)
+    # a smooth concave-convex field: a sphere's distance plus a ripple, sampled on a 2 cm grid
+    n, h_grid = 30, 0.02
+    origin = np.array([-0.3, -0.3, -0.5])
+    g = origin + h_grid * np.stack(np.meshgrid(*[np.arange(n)] * 3, indexing="ij"), axis=-1)
+    values = np.linalg.norm(g - [0.05, 0.04, -0.2], axis=-1) - 0.2 + 0.01 * np.sin(12 * g[..., 0])
+    body = GridSDFBody(origin=origin, spacing=h_grid, values=values)
+    p = rng.uniform(-0.2, 0.2, size=(40, 3)) + [0, 0, -0.2]
+    H = body.phi_hess(p)
+    assert np.abs(H).max() > 1.0
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = 1e-6
+        fd = (body.phi_grad(p + e)[1] - body.phi_grad(p - e)[1]) / 2e-6
+        np.testing.assert_allclose(H[:, :, k], fd, atol=1e-5 * np.abs(H).max())
+    model, x = model_and_state(Scene(body=body, contact_offset=0.01))
+    phi, _ = body.phi_grad(x)
+    assert (phi < 0.01).sum() > 5
+    fd_hessian_check(model, x, "contact", h=1e-7, rtol=1e-5)
 
 
 def test_friction_anchor_derivatives():

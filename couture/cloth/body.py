@@ -1,6 +1,8 @@
 """Bodies the cloth rests on, as signed distance fields (positive outside).
 
-Every body offers ``phi_grad(points (n, 3)) -> (phi (n,) [m], grad (n, 3))``.
+Every body offers ``phi_grad(points (n, 3)) -> (phi (n,) [m], grad (n, 3))``;
+the ones here also ``phi_hess(points) -> (n, 3, 3) [1/m]``, the SDF's Hessian
+(its curvature), which the contact stiffness needs to be the exact Hessian.
 
 - :class:`SphereBody`, :class:`PlaneBody`: closed-form SDFs for tests and the
   SC Fig. 5 sphere scene.
@@ -43,6 +45,13 @@ class SphereBody:
         grad[r == 0] = (0.0, 1.0, 0.0)
         return r - self.radius, grad
 
+    def phi_hess(self, points: np.ndarray) -> np.ndarray:
+        """(I - n nᵀ) / r: the distance to the centre curves with 1/r across n."""
+        d = np.asarray(points, dtype=np.float64) - np.asarray(self.center, dtype=np.float64)
+        r = np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+        n = d / r[:, None]
+        return (np.eye(3)[None] - n[:, :, None] * n[:, None, :]) / r[:, None, None]
+
 
 @dataclass
 class PlaneBody:
@@ -58,6 +67,9 @@ class PlaneBody:
         n = n / np.linalg.norm(n)
         p = np.asarray(points, dtype=np.float64)
         return (p - np.asarray(self.point, dtype=np.float64)) @ n, np.broadcast_to(n, p.shape).copy()
+
+    def phi_hess(self, points: np.ndarray) -> np.ndarray:
+        return np.zeros((len(points), 3, 3))
 
 
 @dataclass
@@ -79,6 +91,15 @@ class GridSDFBody:
         kernel = K.bspline_phi_grad if self.interpolation == "bspline" else K.trilinear_phi_grad
         kernel(p, np.asarray(self.origin, np.float64), float(self.spacing), self.values, phi, grad)
         return phi, grad
+
+    def phi_hess(self, points: np.ndarray) -> np.ndarray:
+        """The B-spline interpolant's Hessian [1/m], (n, 3, 3); zero for 'trilinear'
+        (piecewise linear: no curvature inside a cell)."""
+        p = np.ascontiguousarray(points, dtype=np.float64)
+        hess = np.zeros((len(p), 3, 3))
+        if self.interpolation == "bspline":
+            K.bspline_phi_hess(p, np.asarray(self.origin, np.float64), float(self.spacing), self.values, hess)
+        return hess
 
 
 class TriangleMeshDistance:

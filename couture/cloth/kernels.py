@@ -385,19 +385,39 @@ def contact_forces(phi, grad, offset, k_c, eps, f):
 
 
 @njit(cache=True)
-def contact_stiffness(phi, grad, offset, k_c, eps, diag_slots, blk_base, blk_stride, data):
-    """Gauss-Newton Hessian S(pen) grad grad^T for vertices inside the offset (PSD;
-    it drops F(pen) Hess(phi), the body's curvature term)."""
+def contact_stiffness(phi, grad, hess, offset, k_c, eps, project, diag_slots, blk_base, blk_stride, data):
+    """Hessian of the contact energy per vertex inside the offset layer:
+    S(pen) ∇phi ∇phiᵀ - F(pen) ∇²phi, S and F from ``contact_law``, ``hess``
+    (n, 3, 3) the body's SDF Hessian (zeros where the body offers none: the
+    Gauss-Newton part alone). The curvature term matters where the cloth is
+    pressed hard over a tightly curved or concave part of the body (between
+    the legs, at an armpit): there it is the stiffest tangential term a vertex
+    has, and a Newton model without it overshoots every step. ``project``:
+    the 3x3 block's negative eigenvalues (cloth over a convex part) clamped
+    to zero, so the block is PSD."""
+    blk = np.empty((3, 3))
     for v in range(phi.shape[0]):
         pen = offset - phi[v]
         if pen > 0.0:
             ev, fv, sv = contact_law(pen, k_c, eps)
+            for i in range(3):
+                for j in range(3):
+                    blk[i, j] = sv * grad[v, i] * grad[v, j] - fv * hess[v, i, j]
+            if project:
+                w, U = np.linalg.eigh(blk)
+                for i in range(3):
+                    for j in range(3):
+                        acc = 0.0
+                        for k in range(3):
+                            if w[k] > 0.0:
+                                acc += w[k] * U[i, k] * U[j, k]
+                        blk[i, j] = acc
             s = diag_slots[v]
             base = blk_base[s]
             st = blk_stride[s]
             for i in range(3):
                 for j in range(3):
-                    data[base + i * st + j] += sv * grad[v, i] * grad[v, j]
+                    data[base + i * st + j] += blk[i, j]
 
 
 @njit(cache=True)
@@ -609,6 +629,66 @@ def _bspline3(t, w, dw):
     dw[1] = 1.5 * t * t - 2.0 * t
     dw[2] = -1.5 * t * t + t + 0.5
     dw[3] = 0.5 * t * t
+
+
+@njit(cache=True)
+def _bspline3_dd(t, ddw):
+    """Second derivatives d²/dt² of the ``_bspline3`` weights."""
+    ddw[0] = 1.0 - t
+    ddw[1] = 3.0 * t - 2.0
+    ddw[2] = 1.0 - 3.0 * t
+    ddw[3] = t
+
+
+@njit(cache=True)
+def bspline_phi_hess(points, origin, spacing, values, hess):
+    """Hessian (n, 3, 3) [1/m] of the ``bspline_phi_grad`` interpolant (continuous:
+    the cubic B-spline is C²); zero outside the grid box, where the SDF is the
+    interpolant plus a distance to the box and no cloth is in contact."""
+    nx, ny, nz = values.shape
+    lim = (nx, ny, nz)
+    dirx = np.zeros(3)
+    base = np.empty(3, np.int64)
+    fr = np.empty(3)
+    w = np.empty((3, 4))
+    d = np.empty((3, 4))
+    dd = np.empty((3, 4))
+    ix = np.empty(4, np.int64)
+    iy = np.empty(4, np.int64)
+    iz = np.empty(4, np.int64)
+    h2 = spacing * spacing
+    for p in range(points.shape[0]):
+        extra2 = _grid_cell(points[p], origin, spacing, lim, dirx, base, fr)
+        for k in range(3):
+            hess[p, k, 0] = 0.0
+            hess[p, k, 1] = 0.0
+            hess[p, k, 2] = 0.0
+        if extra2 > 0.0:
+            continue
+        for k in range(3):
+            _bspline3(fr[k], w[k], d[k])
+            _bspline3_dd(fr[k], dd[k])
+        for a in range(4):
+            ix[a] = min(max(base[0] - 1 + a, 0), nx - 1)
+            iy[a] = min(max(base[1] - 1 + a, 0), ny - 1)
+            iz[a] = min(max(base[2] - 1 + a, 0), nz - 1)
+        hxx = hyy = hzz = hxy = hxz = hyz = 0.0
+        for a in range(4):
+            for b in range(4):
+                for c in range(4):
+                    v = values[ix[a], iy[b], iz[c]]
+                    hxx += dd[0, a] * w[1, b] * w[2, c] * v
+                    hyy += w[0, a] * dd[1, b] * w[2, c] * v
+                    hzz += w[0, a] * w[1, b] * dd[2, c] * v
+                    hxy += d[0, a] * d[1, b] * w[2, c] * v
+                    hxz += d[0, a] * w[1, b] * d[2, c] * v
+                    hyz += w[0, a] * d[1, b] * d[2, c] * v
+        hess[p, 0, 0] = hxx / h2
+        hess[p, 1, 1] = hyy / h2
+        hess[p, 2, 2] = hzz / h2
+        hess[p, 0, 1] = hess[p, 1, 0] = hxy / h2
+        hess[p, 0, 2] = hess[p, 2, 0] = hxz / h2
+        hess[p, 1, 2] = hess[p, 2, 1] = hyz / h2
 
 
 @njit(cache=True)

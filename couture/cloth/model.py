@@ -299,6 +299,8 @@ class ClothModel:
             self.sliding = np.zeros(self.n, bool)
             self.anchor = np.zeros((self.n, 3))
             self.anchor_normal = np.zeros((self.n, 3))
+            self.slipping = np.zeros(self.n, bool)
+            self.slip_force = np.zeros((self.n, 3))
 
         self.set_rest_positions(mesh.X)
 
@@ -369,6 +371,16 @@ class ClothModel:
         phi, grad = self.body.phi_grad(x)
         return np.ascontiguousarray(phi, dtype=np.float64), np.ascontiguousarray(grad, dtype=np.float64)
 
+    def _contact_hess(self, x, phi):
+        """SDF Hessians (n, 3, 3) of the vertices inside the contact layer (zeros
+        elsewhere, and everywhere for a body without ``phi_hess``)."""
+        hess = np.zeros((self.n, 3, 3))
+        phi_hess = getattr(self.body, "phi_hess", None)
+        inside = np.nonzero(phi < self.contact_offset)[0]
+        if phi_hess is not None and len(inside):
+            hess[inside] = phi_hess(np.ascontiguousarray(x[inside]))
+        return hess
+
     def energy(self, x: np.ndarray, terms=None) -> float:
         """Total potential energy [J] (or the sum over ``terms``)."""
         return self._energy_forces(x, self._check_terms(terms), want_forces=False)[0]
@@ -409,11 +421,18 @@ class ClothModel:
             e += K.contact_forces(phi, grad, self.contact_offset, self.contact_stiffness, self.contact_smoothing, f)
         if "friction" in terms:
             e += K.anchor_forces(x, self.anchored, self.anchor, self.anchor_normal, self.friction_stiffness, f)
+            if self.slipping.any():
+                # kinetic friction on slipping vertices: a constant force, potential -f.x
+                f += self.slip_force
+                e -= float(np.vdot(self.slip_force, x))
         return e, f
 
     def stiffness(self, x: np.ndarray, terms=None, project: bool | None = None) -> sp.csr_matrix:
-        """d²E/dx² as a (3n, 3n) CSR matrix, PSD (membrane projected in
-        compression, contact Gauss-Newton). For all terms and the default
+        """d²E/dx² as a (3n, 3n) CSR matrix. With ``project`` (the scene's default)
+        it is PSD: the membrane's stress projected in compression and each
+        vertex's contact block (Gauss-Newton part plus the body-curvature term)
+        clamped to its non-negative eigenvalues; ``project=False`` is the exact
+        Hessian. For all terms and the default
         projection the same matrix object is refilled in place every call
         (same indices, new data): copy it to keep it."""
         x = np.ascontiguousarray(x, dtype=np.float64)
@@ -435,8 +454,8 @@ class ClothModel:
                                  self.tri_slots, p.blk_base, p.blk_stride, data)
         if "contact" in terms_:
             phi, grad = self._contact(x)
-            K.contact_stiffness(phi, grad, self.contact_offset, self.contact_stiffness, self.contact_smoothing,
-                                self.diag_slots, p.blk_base, p.blk_stride, data)
+            K.contact_stiffness(phi, grad, self._contact_hess(x, phi), self.contact_offset, self.contact_stiffness,
+                                self.contact_smoothing, project, self.diag_slots, p.blk_base, p.blk_stride, data)
         if "friction" in terms_:
             K.anchor_stiffness(self.anchored, self.anchor_normal, self.friction_stiffness,
                                self.diag_slots, p.blk_base, p.blk_stride, data)
@@ -501,12 +520,77 @@ class ClothModel:
         fn = self.contact_normal_force(self.contact_offset - phi)
         return float(np.max(ft - self.friction_static * fn))
 
+    def slip_friction(self, x: np.ndarray) -> int:
+        """Let every anchor that holds more than mu_s f_n at x slip: the vertex loses
+        its anchor spring and feels instead the kinetic friction force, mu_k f_n
+        along the spring's force (a constant force), so it slides as far as the
+        cloth pulls it in one solve (an anchor out of contact is released).
+        ``stick_slipping`` anchors it again where it came to rest. Returns how many
+        slipped. Why not re-anchor at the kinetic limit (``update_friction``): with
+        a spring 5000x stiffer than the cloth the re-balanced cloth pushes the
+        anchor past mu_s again after a micrometre, and the rounds creep without end."""
+        if "friction" not in self.terms or not self.anchored.any():
+            return 0
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        idx = np.nonzero(self.anchored)[0]
+        phi, _ = self._contact(np.ascontiguousarray(x[idx]))
+        fn = self.contact_normal_force(self.contact_offset - phi)
+        fa = self.forces(x, ["friction"])[idx]
+        ft = np.linalg.norm(fa, axis=1)
+        over = ft > self.friction_static * fn
+        if not over.any():
+            return 0
+        j = idx[over]
+        self.anchored[j] = False
+        self.sliding[j] = False
+        touching = fn[over] > 0.0
+        self.slipping[j[touching]] = True
+        self.slip_force[j[touching]] = ((self.friction_kinetic * fn[over][touching] / ft[over][touching])[:, None]
+                                        * fa[over][touching])
+        return int(over.sum())
+
+    def stick_slipping(self, x: np.ndarray) -> int:
+        """Anchor every slipping vertex where it is, with the anchor spring holding the
+        same force the kinetic friction did (the balance at x is unchanged); a vertex
+        that left the body is let go. Returns how many were slipping."""
+        if "friction" not in self.terms or not self.slipping.any():
+            return 0
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        j = np.nonzero(self.slipping)[0]
+        phi, _ = self._contact(np.ascontiguousarray(x[j]))
+        touching = phi < self.contact_offset
+        k = j[touching]
+        # -k_t P(x - a) = slip force (tangential to the kept anchor normal): a = x + f / k_t
+        self.anchor[k] = x[k] + self.slip_force[k] / self.friction_stiffness
+        self.anchored[k] = True
+        self.sliding[k] = False
+        self.slipping[j] = False
+        self.slip_force[j] = 0.0
+        return len(j)
+
+    def friction_state(self) -> tuple[np.ndarray, ...] | None:
+        """A copy of the friction state (anchors, slipping vertices and their forces),
+        None without friction: a solver that returns an earlier state returns its anchors too."""
+        if "friction" not in self.terms:
+            return None
+        return (self.anchored.copy(), self.sliding.copy(), self.anchor.copy(), self.anchor_normal.copy(),
+                self.slipping.copy(), self.slip_force.copy())
+
+    def set_friction_state(self, state: tuple[np.ndarray, ...] | None) -> None:
+        """Put back anchors taken by ``friction_state``."""
+        if state is None or "friction" not in self.terms:
+            return
+        (self.anchored[:], self.sliding[:], self.anchor[:], self.anchor_normal[:],
+         self.slipping[:], self.slip_force[:]) = state
+
     def release_friction(self) -> None:
         """Drop every friction anchor (no-op without friction): a solve that starts
         far from equilibrium (a fresh placement) lets the cloth settle frictionless first."""
         if "friction" in self.terms:
             self.anchored[:] = False
             self.sliding[:] = False
+            self.slipping[:] = False
+            self.slip_force[:] = 0.0
 
     def update_friction(self, x: np.ndarray) -> dict:
         """Move, create or release friction anchors (Hasegawa 2003); no-op without friction.
@@ -522,6 +606,7 @@ class ClothModel:
         if "friction" not in self.terms:
             return {"anchored": 0, "sliding": 0, "created": 0, "released": 0}
         x = np.ascontiguousarray(x, dtype=np.float64)
+        self.stick_slipping(x)
         phi, grad = self._contact(x)
         pen = self.contact_offset - phi
         contact = pen > 0.0

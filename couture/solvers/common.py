@@ -113,3 +113,76 @@ def energy_round_off(model, x: np.ndarray, E: float) -> float:
     if not terms:
         return 1e-9 * (abs(E) + 1e-300)
     return 1e-9 * sum(abs(model.energy(x, [t])) for t in terms)
+
+
+class BestState:
+    """The state with the lowest relative residual seen, with the friction anchors
+    it was measured against (a residual means nothing without its anchors)."""
+
+    def __init__(self, model):
+        self.model = model
+        self.x: np.ndarray | None = None
+        self.r = np.inf
+        self.it = -1
+        self.anchors = None
+
+    def offer(self, x: np.ndarray, r: float, it: int) -> None:
+        if np.isfinite(r) and r < self.r:
+            self.x = np.array(x, dtype=np.float64, copy=True)
+            self.r, self.it = float(r), it
+            state = getattr(self.model, "friction_state", None)
+            self.anchors = state() if state is not None else None
+
+    def restore(self) -> np.ndarray:
+        """The best positions, with the model's anchors put back to what they were then."""
+        put = getattr(self.model, "set_friction_state", None)
+        if put is not None:
+            put(self.anchors)
+        return self.x
+
+
+def friction_allowance(model, x: np.ndarray, tol: float) -> float:
+    """[N] by how much an anchor may exceed its static Coulomb limit at a converged
+    state: one vertex's share, tol * denominator / sqrt(n), of the force the residual
+    tolerance allows (the limit is a force, like the residual)."""
+    den = getattr(model, "residual_denominator", None)
+    d = float(den(x)) if den is not None else 1.0
+    return tol * d / np.sqrt(max(int(model.n), 1))
+
+
+def verdict(model, x: np.ndarray, tol: float) -> tuple[bool, float, str]:
+    """(converged, relative residual, why not) decided from fresh forces at x,
+    independently of how the solver's loop got there: the relative residual is
+    at most ``tol`` and every friction anchor holds within its static Coulomb
+    cone, |f_t| <= mu_s f_n (to ``friction_allowance``)."""
+    r = float(model.relative_residual(x))
+    if not np.isfinite(r):
+        return False, r, "non-finite residual"
+    if r > tol:
+        return False, r, f"residual {r:.3g} > tol {tol:.3g}"
+    excess_fn = getattr(model, "friction_excess", None)
+    excess = float(excess_fn(x)) if excess_fn is not None else 0.0
+    allowed = friction_allowance(model, x, tol)
+    if excess > allowed:
+        return False, r, (f"friction: an anchor holds {excess:.3g} N beyond its static Coulomb limit "
+                          f"mu_s f_n (allowed {allowed:.3g} N): the cloth would slide there")
+    return True, r, ""
+
+
+def finish(model, x: np.ndarray, r: float, loop_diag: str, best: BestState, tol: float) -> tuple[np.ndarray, float, bool, str]:
+    """What a solver returns: its last state, or the best one seen when that is
+    better (a stall, a cap, a divergence, a friction update that made things
+    worse), with ``converged`` decided by ``verdict`` from fresh forces.
+    Returns (x, residual, converged, diagnosis)."""
+    note = ""
+    stopped = loop_diag.startswith("stopped by callback") and finite(x)  # the caller's own choice of state
+    if loop_diag and not stopped and best.x is not None and (not finite(x) or not np.isfinite(r) or best.r < r):
+        note = f"; returned the best state seen (residual {best.r:.3g} at iteration {best.it}, last {r:.3g})"
+        x = best.restore()
+    ok, r_fresh, why = verdict(model, x, tol)
+    if ok:
+        return x, r_fresh, True, ""
+    diag = loop_diag or why
+    if loop_diag and why and not why.startswith("residual"):
+        diag = f"{loop_diag}; {why}"
+    return x, r_fresh, False, diag + note

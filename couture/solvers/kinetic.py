@@ -59,13 +59,11 @@ of fixed anchors in between (refreshing every step kept sliding anchors
 moving and stalled the skirt at ~1e-3). Convergence: residual <= tol
 including the anchor forces, and every anchor force within the static
 Coulomb limit mu_s f_n (``model.friction_excess``), i.e. a static Coulomb
-equilibrium; otherwise the anchors are refreshed and the solve goes on, at
-most ``friction_rounds`` times: sliding anchors creep (each refresh drags
-them to the kinetic limit and the cloth follows), measured on the skirt 240
-rounds without settling, so after that the drape is returned as the
-equilibrium of the anchors as they stand (residual <= tol including their
-forces) and ``stats['friction_excess_N']`` says by how much the worst anchor
-exceeds mu_s f_n.
+equilibrium; otherwise the anchors are refreshed (those beyond the limit
+slide to the kinetic one) and the solve goes on. Where the cloth keeps
+creeping the caps stop it and the result says so: ``converged`` is decided
+at return from fresh forces (``common.verdict``), never by the loop, and a
+solve that stops returns the best state it saw (``common.BestState``).
 """
 
 from __future__ import annotations
@@ -75,7 +73,8 @@ import time
 import numpy as np
 
 from .base import ProgressCallback, SolveResult
-from .common import ResidualScale, Watch, energy_and_forces, energy_round_off, finite, pinned_positions
+from .common import (BestState, ResidualScale, Watch, energy_and_forces, energy_round_off, finish, friction_allowance,
+                     finite, pinned_positions)
 from .linalg import (IC0, FactorizationError, ReducedSystem, factorize, pcg, pcg_factor, resolve_backend,
                      seam_first_order)
 
@@ -102,7 +101,6 @@ class KineticSolver:
         max_step: float | None = None,
         friction_every: int = 20,
         friction_after: float = 1e-2,
-        friction_rounds: int = 5,
         max_backtracks: int = 4,
     ):
         """dt [s] first (or fixed) time step (SC's 5 ms); adaptive: grow/shrink
@@ -121,8 +119,6 @@ class KineticSolver:
         with a shorter dt; friction_every: anchor refresh period in steps;
         friction_after: friction anchors act only once the relative residual
         is below this (a start above it releases all anchors first);
-        friction_rounds: anchor refreshes at convergence before the anchors
-        are kept as they are (module docstring);
         max_backtracks: halvings of a step that raised the energy before
         the velocity is zeroed or dt shortened (keeps dt, hence the
         factorization, through isolated bad steps)."""
@@ -144,7 +140,6 @@ class KineticSolver:
         self.max_step = max_step
         self.friction_every = max(1, int(friction_every))
         self.friction_after = friction_after
-        self.friction_rounds = friction_rounds
         self.max_backtracks = max_backtracks
         self._cache = None  # (model, ReducedSystem, IC0 | None)
 
@@ -234,8 +229,8 @@ class KineticSolver:
             return SolveResult(x=np.nan_to_num(x), residual=float("inf"), iterations=0, wall_time=0.0, converged=False,
                                method=self.name, diagnosis="diverged: non-finite initial positions", stats=stats)
 
-        x_good = x.copy()
-        r_good = np.inf
+        best = BestState(model)
+        settled = False
         ke_hist = [0.0, 0.0]
         dv_prev = None
         res_scale = None
@@ -250,9 +245,11 @@ class KineticSolver:
         while True:
             ta = time.perf_counter()
             fresh_anchors = False
-            if f is None or (friction_on and it % self.friction_every == 0):
+            if f is None or (friction_on and not settled and it % self.friction_every == 0):
                 tf = time.perf_counter()
-                if friction_on:
+                if friction_on and not settled:
+                    # anchors follow the cloth until it first balances; from then on
+                    # only slips of anchors beyond the static limit (below)
                     model.update_friction(x)
                     fresh_anchors = True
                 stats["friction_s"] += time.perf_counter() - tf
@@ -280,18 +277,19 @@ class KineticSolver:
                     E, f = energy_and_forces(model, x)
                     r = res_scale(x, f)
                     history[-1] = (now, r)
-            if r <= r_good or not np.isfinite(r_good):
-                x_good[:] = x
-                r_good = r
+            best.offer(x, r, it)
             if r <= tol and friction_on and has_friction and not fresh_anchors:
                 # converged for these anchors; it is a Coulomb equilibrium if every anchor
                 # holds within the static limit, otherwise refresh them and go on
                 stats["friction_checks"] += 1
+                settled = True
+                if model.stick_slipping(x):
+                    E, f = energy_and_forces(model, x)
+                    r = res_scale(x, f)
                 excess = model.friction_excess(x)
                 stats["friction_excess_N"] = excess
-                limit = tol * (res_scale.den or 1.0) / np.sqrt(n)
-                if excess > limit and stats["friction_checks"] <= self.friction_rounds:
-                    model.update_friction(x)
+                if excess > friction_allowance(model, x, tol):
+                    stats["slipped"] = stats.get("slipped", 0) + model.slip_friction(x)
                     E, f = energy_and_forces(model, x)
                     r = res_scale(x, f)
                     history[-1] = (now, r)
@@ -446,9 +444,7 @@ class KineticSolver:
         if pre is not None:
             stats["ic_shift"] = pre.shift
             stats["ic_retries"] = pre.retries
-        if diag.startswith("diverged") or not finite(x):
-            # the finite state with the smallest residual seen
-            x, r = x_good, r_good
+        x, r, converged, diag = finish(model, x, r, "" if converged else diag, best, tol)
         wall = time.perf_counter() - t_start
         return SolveResult(x=x, residual=float(r), iterations=it, wall_time=wall, converged=converged,
                            method=self.name, diagnosis=diag, history=history, stats=stats)
