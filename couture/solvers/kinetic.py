@@ -245,12 +245,14 @@ class KineticSolver:
         while True:
             ta = time.perf_counter()
             fresh_anchors = False
-            if f is None or (friction_on and not settled and it % self.friction_every == 0):
+            if f is None or (friction_on and it % self.friction_every == 0):
                 tf = time.perf_counter()
                 if friction_on and not settled:
                     # anchors follow the cloth until it first balances; from then on
-                    # only slips of anchors beyond the static limit (below)
+                    # only slips of anchors beyond the static limit
                     model.update_friction(x)
+                    fresh_anchors = True
+                elif settled and model.slip_friction(x):
                     fresh_anchors = True
                 stats["friction_s"] += time.perf_counter() - tf
                 E, f = energy_and_forces(model, x)

@@ -347,6 +347,14 @@ class NewtonSolver:
                 model.update_friction(x)
                 f = model.forces(x)
                 r = res_scale(x, f)
+            elif settled and it % self.friction_every == 0:
+                # after the first balance, a slide spreads: anchors the slipping cloth drags
+                # beyond mu_s slip in the same solve, not one ring of vertices per balance
+                n_slip = model.slip_friction(x)
+                if n_slip:
+                    stats["slipped"] = stats.get("slipped", 0) + n_slip
+                    f = model.forces(x)
+                    r = res_scale(x, f)
             E = model.energy(x)
             stats["assembly_s"] += time.perf_counter() - ta
 
