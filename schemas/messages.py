@@ -358,25 +358,6 @@ for _cls in MESSAGE_TYPES:
     _base, _v = _cls.TYPE.rsplit("/v", 1)
     _BY_BASE.setdefault(_base, {})[int(_v)] = _cls
 
-TOPIC_TYPES: dict[str, type[Message]] = {
-    "pattern": PatternMsg,
-    "edit": EditMsg,
-    "mesh/*": MeshMsg,
-    "drape/*": DrapeMsg,
-    "status/*": StatusMsg,
-    "solve/request": SolveRequestMsg,
-    "solve/result/*": SolveResultMsg,
-}
-"""which message type each key (relative to couture/<session>/) carries"""
-
-
-def type_for_topic(topic: str) -> type[Message] | None:
-    """Message class a relative key such as 'drape/fine' carries, or None."""
-    for pattern, cls in TOPIC_TYPES.items():
-        if pattern == topic or (pattern.endswith("/*") and topic.startswith(pattern[:-1]) and "/" not in topic[len(pattern) - 1:]):
-            return cls
-    return None
-
 
 # ---------------------------------------------------------------------------
 # encode / decode / validate
@@ -519,6 +500,6 @@ def json_schema(cls: type[Message]) -> bytes:
 
 __all__ = [
     "SchemaError", "Message", "PatternMsg", "EditMsg", "MeshMsg", "DrapeMsg", "StatusMsg",
-    "SolveRequestMsg", "SolveResultMsg", "MESSAGE_TYPES", "REGISTRY", "TOPIC_TYPES", "type_for_topic",
+    "SolveRequestMsg", "SolveResultMsg", "MESSAGE_TYPES", "REGISTRY",
     "encode", "decode", "validate", "peek_schema", "json_schema", "ArraySpec",
 ]
