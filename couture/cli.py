@@ -6,11 +6,15 @@ import argparse
 import importlib
 import json
 import logging
+import pkgutil
 import shutil
 import sys
 from pathlib import Path
 
-BENCHES = ["bus", "solver", "remesh", "sensitivity", "edit", "ui", "drape_slopers"]
+import couture.bench
+
+BENCHES = sorted(m.name for m in pkgutil.iter_modules(couture.bench.__path__))
+"""every module of couture.bench is a benchmark with a main(argv)"""
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -74,9 +78,9 @@ def _parser() -> argparse.ArgumentParser:
     gp = sub.add_parser("golden", help="golden recordings: make or check recordings/<case>.mcap", add_help=False)
     gp.add_argument("rest", nargs=argparse.REMAINDER)
 
-    bp = sub.add_parser("bench", help="benchmarks")
+    bp = sub.add_parser("bench", help="benchmarks: NAME writes NAME.json (and its plots) to --out DIR (default bench/results/)")
     bp.add_argument("which", choices=BENCHES)
-    bp.add_argument("args", nargs=argparse.REMAINDER, help="passed to the benchmark")
+    bp.add_argument("args", nargs=argparse.REMAINDER, help="passed to the benchmark, e.g. --out DIR")
     return p
 
 

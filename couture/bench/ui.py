@@ -18,7 +18,8 @@ Debian chromium on the 3D view, then:
    which bounds the edit rate from one pointer.
 
 Both runs repeat for the plain drape (one mesh, vertex updates only) and the
-banded strain colour map. Results go to stdout as JSON (and ``--out``).
+banded strain colour map. Results go to stdout as JSON and to
+``ui.json`` in the results folder (``--out``, default bench/results/).
 """
 
 from __future__ import annotations
@@ -26,11 +27,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
+
+from couture.bench import add_out_arg, write_results
 
 _OBSERVER_JS = """
 () => {
@@ -169,14 +171,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=5.0)
     ap.add_argument("--offer-hz", type=float, default=120.0)
     ap.add_argument("--fields", default="none,strain", help="colour maps to run, comma-separated")
-    ap.add_argument("--out", type=Path, default=Path("bench/results/ui.json"), help="write the JSON here")
+    add_out_arg(ap)
     a = ap.parse_args(argv)
     res = run(a.vertices, a.seconds, a.offer_hz, tuple(a.fields.split(",")))
     text = json.dumps(res, indent=2)
     print(text)
-    if a.out:
-        a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(text)
+    write_results(a.out, "ui", res)
     return 0
 
 
