@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, TypeVar, overload
 
 import msgspec
 import numpy as np
@@ -398,6 +398,13 @@ def peek_schema(data: bytes) -> str | None:
         return None
 
 
+M = TypeVar("M", bound=Message)
+
+
+@overload
+def decode(data: bytes | bytearray | memoryview, expected_type: type[M]) -> M: ...
+@overload
+def decode(data: bytes | bytearray | memoryview, expected_type: None = None) -> Message: ...
 def decode(data: bytes | bytearray | memoryview, expected_type: type[Message] | None = None) -> Message:
     """Parse and validate a payload; raises SchemaError (only) naming schema and field."""
     try:
@@ -465,7 +472,7 @@ def validate(msg: Message, path: str = "$") -> None:
             raise SchemaError(f"{t}: field `{fpath}`: dtype {a.dtype} not allowed here (allowed: {', '.join(spec.dtypes)})")
         if len(a.shape) != len(spec.shape):
             raise SchemaError(f"{t}: field `{fpath}`: shape {tuple(a.shape)} does not match {_shape_str(spec.shape)}")
-        for size, want in zip(a.shape, spec.shape):
+        for size, want in zip(a.shape, spec.shape, strict=True):
             if isinstance(want, int):
                 if size != want:
                     raise SchemaError(f"{t}: field `{fpath}`: shape {tuple(a.shape)} does not match {_shape_str(spec.shape)}")

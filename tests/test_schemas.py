@@ -28,8 +28,8 @@ from schemas import (
     type_for_topic,
 )
 from schemas.convert import mesh_to_msg, msg_to_mesh
-from schemas.topics import TOPICS, key_intersects, topic_spec
 from schemas.design import Stroke
+from schemas.topics import TOPICS, key_intersects, topic_spec
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64, min_value=-1e6, max_value=1e6)
 ints = st.integers(min_value=0, max_value=2**40)

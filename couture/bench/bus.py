@@ -38,6 +38,7 @@ N_VERTICES = 10_000
 def _publisher(args: argparse.Namespace) -> None:
     """Child: publish drapes at ``rate`` Hz (0: as fast as possible) for ``seconds``."""
     from couture.bus import BusConfig, open_session
+    from schemas.arrays import Array
     from schemas.messages import DrapeMsg
 
     x = np.random.default_rng(0).normal(size=(N_VERTICES, 3)).astype(np.float32)
@@ -53,7 +54,7 @@ def _publisher(args: argparse.Namespace) -> None:
                 due = t0 + n / args.rate
                 while (d := due - time.perf_counter()) > 0:
                     time.sleep(d if d > 0.002 else 0)
-            pub.put(DrapeMsg(level="fine", x=x, generation=1, residual=1e-4, iterations=n, solver="bench"))
+            pub.put(DrapeMsg(level="fine", x=Array.from_numpy(x), generation=1, residual=1e-4, iterations=n, solver="bench"))
             n += 1
         bus.zenoh.put(bus.key("bench/done"), str(n).encode())
         time.sleep(0.5)
@@ -112,7 +113,9 @@ def run(seconds: float = 5.0, out: Path | str | None = RESULTS_DIR) -> dict:
         probe.undeclare()
 
         # 2. throughput
-        lat.clear(); count[:] = [0, 0.0, 0.0]; done.clear()
+        lat.clear()
+        count[:] = [0, 0.0, 0.0]
+        done.clear()
         p = _spawn_pub(session, endpoint, 0, 3.0)
         sent = int(p.communicate(timeout=60)[0].split()[-1])
         done.wait(5)

@@ -98,6 +98,8 @@ def drape(kind: str, vertices: int = 1600, solvers=("newton", "kinetic"), max_se
             best = (row, x)
         if out.converged:
             break
+    if best is None:
+        raise ValueError("drape needs at least one solver")
     return best[0], best[1], mesh
 
 

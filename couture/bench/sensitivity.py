@@ -89,7 +89,7 @@ def bench_size(nx: int, ny: int, solve_seconds: float, repeats: int, log=print) 
     cache = GMLSCache(n)
     cache.add((0.0, 0.0), x, S, anchor=True)
     # two more first-order samples along the drag (stand-ins for solver equilibria)
-    for k, dd in enumerate((0.05, 0.10), 1):
+    for dd in (0.05, 0.10):
         cache.add((dd, 0.0), x + S @ np.array([dd, 0.0]), S)
     d = np.array([0.12, 0.01])
     cache.predict(d)
@@ -164,7 +164,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=7)
     add_out_arg(ap)
     args = ap.parse_args(argv)
-    rows = [bench_size(*map(int, s.split("x")), args.solve_seconds, args.repeats) for s in args.sizes.split(",")]
+    grids = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
+    rows = [bench_size(nx, ny, args.solve_seconds, args.repeats) for nx, ny in grids]
     print(table(rows))
     big = max(rows, key=lambda r: r["vertices"])
     verdict = {k: {"goal_ms": g, "measured_ms": big[k], "met": big[k] <= g} for k, g in GOALS.items()}

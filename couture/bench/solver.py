@@ -165,7 +165,7 @@ def plot(rows, path: Path) -> None:
 
     levels = sorted({r["level"] for r in rows}, key=lambda s: ("cascadic" in s, s))
     fig, axes = plt.subplots(1, len(levels), figsize=(5.5 * len(levels), 4.2), squeeze=False)
-    for ax, level in zip(axes[0], levels):
+    for ax, level in zip(axes[0], levels, strict=True):
         for r in rows:
             if r["level"] != level or not r["history"]:
                 continue

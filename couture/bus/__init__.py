@@ -7,6 +7,7 @@
 """
 
 from couture.bus.node import PARENT_PID_ENV, Node, StopFlag
+from couture.bus.ports import free_port
 from couture.bus.session import (
     DEFAULT_ENDPOINT,
     DEFAULT_PORT,
@@ -18,7 +19,6 @@ from couture.bus.session import (
     bus_config_from_args,
     open_session,
 )
-from couture.bus.ports import free_port
 
 __all__ = [
     "Bus", "BusConfig", "Node", "StopFlag", "Stats", "TypedPublisher", "DEFAULT_ENDPOINT", "DEFAULT_PORT",

@@ -182,6 +182,12 @@ def publisher_options(topic: str, *, drop: bool | None = None) -> tuple[dict[str
     return opts, delivery.history
 
 
+def has_subscribers(pub: Any) -> bool:
+    """Whether a subscriber matches a plain Zenoh publisher now. (zenoh 1.10's
+    stubs type ``matching_status`` as bool; it is a MatchingStatus object.)"""
+    return bool(pub.matching_status.matching)
+
+
 class TypedPublisher(Generic[M]):
     """Publishes one message type on one key; fills seq and stamp_ns."""
 
@@ -195,7 +201,8 @@ class TypedPublisher(Generic[M]):
         self._seq = 0
         self._lock = threading.Lock()
         opts, history = publisher_options(topic, drop=drop)
-        self._probe = None
+        self._pub: zenoh.Publisher | zenoh.ext.AdvancedPublisher
+        self._probe: zenoh.Publisher | None = None
         if history:
             # zenoh-ext advanced publisher: a subscriber that joins late (a
             # restarted solver, a reopened UI) receives the cached samples
@@ -228,7 +235,7 @@ class TypedPublisher(Generic[M]):
 
     def matching(self) -> bool:
         """Whether any subscriber matches this key now."""
-        return bool((self._probe or self._pub).matching_status.matching)
+        return has_subscribers(self._probe if self._probe is not None else self._pub)
 
     def wait_matching(self, timeout: float) -> bool:
         deadline = time.monotonic() + timeout
@@ -324,6 +331,7 @@ class Bus:
         n_history = topics.history_for_subscription(topic)
         if history is None:
             history = n_history > 0
+        sub: zenoh.Subscriber | zenoh.ext.AdvancedSubscriber
         if history:  # late joiners get the cached samples of the topics that keep some
             sub = zenoh.ext.declare_advanced_subscriber(
                 self.zenoh, self.key(topic), on_sample,
@@ -466,10 +474,11 @@ class Bus:
         for reply in replies:
             if reply.ok is not None:
                 try:
-                    return decode(reply.ok.payload.to_bytes(), SolveResultMsg)  # type: ignore[return-value]
+                    return decode(reply.ok.payload.to_bytes(), SolveResultMsg)
                 except SchemaError as e:
                     raise RuntimeError(f"solver on {reply.ok.key_expr} sent an invalid result: {e}") from None
-            raise RuntimeError(f"solver on {key} failed: {reply.err.payload.to_bytes().decode(errors='replace')}")
+            why = reply.err.payload.to_bytes().decode(errors="replace") if reply.err is not None else "empty reply"
+            raise RuntimeError(f"solver on {key} failed: {why}")
         live = self.live_nodes(timeout=0.5)
         raise TimeoutError(f"no solver answered on {key} within {timeout:g} s (live nodes: {live or 'none'})")
 

@@ -191,7 +191,7 @@ def _compare_values(gv: Any, av: Any, path: str, rtol: float, atol: float, tr: T
                 devs.append(f"{path}: {av!r} vs golden {gv!r}")
             return
     if isinstance(gv, list) and isinstance(av, list) and len(gv) == len(av):
-        for i, (x, y) in enumerate(zip(gv, av)):
+        for i, (x, y) in enumerate(zip(gv, av, strict=True)):
             _compare_values(x, y, f"{path}[{i}]", rtol, atol, tr, key, devs)
         return
     if isinstance(gv, dict) and isinstance(av, dict) and gv.keys() == av.keys():

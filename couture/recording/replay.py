@@ -66,7 +66,7 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
             if missing:
                 raise TimeoutError(f"replay: nodes {missing} not live on session {config.bus.session} after {config.wait_timeout_s:g} s")
         deadline = time.monotonic() + config.wait_timeout_s
-        for topic, pub in pubs.items():
+        for pub in pubs.values():
             if not pub.wait_matching(max(0.0, deadline - time.monotonic())):
                 text = f"replay: no subscriber on {pub.key} after {config.wait_timeout_s:g} s"
                 if config.require_subscribers:
