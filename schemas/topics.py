@@ -35,9 +35,10 @@ class Delivery:
 
     @property
     def name(self) -> str:
-        """'history', 'express', 'drop' or a '+'-joined mix; 'reliable' for plain BLOCK."""
-        parts = ([f"history({self.history})"] if self.history else []) + (["express"] if self.express else []) \
-            + (["drop"] if self.drop else [])
+        """'history(n)', 'express', 'drop' or a '+'-joined mix; 'reliable' for none of them."""
+        parts = [f"history({self.history})"] if self.history else []
+        parts += ["express"] if self.express else []
+        parts += ["drop"] if self.drop else []
         return "+".join(parts) or "reliable"
 
 
@@ -72,7 +73,7 @@ class Topic:
 TOPICS: tuple[Topic, ...] = (
     # A few patterns, so a late joiner also sees the last *valid* design when the newest one was rejected.
     Topic("pattern", PatternMsg, Delivery(history=8), recorded=True, replayed=True, compared=False,
-          publisher="ui, scripts"),
+          publisher="ui, scripts, sensitivity (3D tug)"),
     Topic("edit", EditMsg, EXPRESS, recorded=True, replayed=True, compared=False, publisher="ui, scripts"),
     Topic("mesh/coarse", MeshMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="remesher"),
     Topic("mesh/fine", MeshMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="remesher"),
