@@ -6,16 +6,21 @@ import argparse
 import importlib
 import json
 import logging
+import pkgutil
 import shutil
 import sys
 from pathlib import Path
 
-BENCHES = ["bus", "solver", "remesh", "sensitivity", "edit", "ui", "drape_slopers"]
+import couture.bench
+
+BENCHES = sorted(m.name for m in pkgutil.iter_modules(couture.bench.__path__))
+"""every module of couture.bench is a benchmark with a main(argv)"""
 
 
 def _parser() -> argparse.ArgumentParser:
     from couture.bus import add_bus_args
     from couture.recording.__main__ import build_parser as record_parser
+    from schemas.topics import compared_topics, replayed_topics
 
     p = argparse.ArgumentParser(prog="couture", description="interactive garment design (Sensitive Couture) on Zenoh")
     p.add_argument("-v", "--verbose", action="store_true")
@@ -32,9 +37,10 @@ def _parser() -> argparse.ArgumentParser:
 
     record_parser(sub.add_parser("record", help="record couture/** messages to MCAP"))
 
-    rp = sub.add_parser("replay", help="publish recorded inputs (pattern, edit) onto the bus")
+    inputs, outputs = " ".join(replayed_topics()), " ".join(compared_topics())
+    rp = sub.add_parser("replay", help=f"publish recorded inputs ({inputs}) onto the bus")
     rp.add_argument("path")
-    rp.add_argument("--topics", nargs="+", default=["pattern", "edit"], help="relative topics to replay (default: pattern edit)")
+    rp.add_argument("--topics", nargs="+", default=None, help=f"relative topics to replay (default: {inputs})")
     rp.add_argument("--rate", type=float, default=1.0, help="1: original timing, R: R times faster, 0: as fast as possible")
     rp.add_argument("--loop", action="store_true")
     rp.add_argument("--wait-nodes", nargs="*", default=[], help="node names that must be live before sending")
@@ -50,7 +56,7 @@ def _parser() -> argparse.ArgumentParser:
     cp.add_argument("--json", metavar="OUT", help="write the report as JSON")
     cp.add_argument("--rtol", type=float, default=1e-5)
     cp.add_argument("--atol", type=float, default=1e-8, help="absolute tolerance [m for positions]")
-    cp.add_argument("--topics", nargs="+", default=None, help="output topics (default drape/* mesh/* solve/result/*)")
+    cp.add_argument("--topics", nargs="+", default=None, help=f"output topics (default: {outputs})")
 
     rc = sub.add_parser("recover", help="rewrite a recording cut short (SIGKILL) into a finalized MCAP")
     rc.add_argument("src")
@@ -72,9 +78,9 @@ def _parser() -> argparse.ArgumentParser:
     gp = sub.add_parser("golden", help="golden recordings: make or check recordings/<case>.mcap", add_help=False)
     gp.add_argument("rest", nargs=argparse.REMAINDER)
 
-    bp = sub.add_parser("bench", help="benchmarks")
+    bp = sub.add_parser("bench", help="benchmarks: NAME writes NAME.json (and its plots) to --out DIR (default bench/results/)")
     bp.add_argument("which", choices=BENCHES)
-    bp.add_argument("args", nargs=argparse.REMAINDER, help="passed to the benchmark")
+    bp.add_argument("args", nargs=argparse.REMAINDER, help="passed to the benchmark, e.g. --out DIR")
     return p
 
 
@@ -116,9 +122,12 @@ def _dispatch(args: argparse.Namespace) -> int:
         from couture.recording.replay import ReplayConfig
         from couture.recording.replay import main as replay
 
-        replay(ReplayConfig(path=args.path, bus=bus_config_from_args(args), topics=args.topics, rate=args.rate,
-                            loop=args.loop, wait_nodes=args.wait_nodes, wait_timeout_s=args.wait_timeout,
-                            lockstep=args.lockstep, lockstep_timeout_s=args.lockstep_timeout))
+        cfg = ReplayConfig(path=args.path, bus=bus_config_from_args(args), rate=args.rate,
+                           loop=args.loop, wait_nodes=args.wait_nodes, wait_timeout_s=args.wait_timeout,
+                           lockstep=args.lockstep, lockstep_timeout_s=args.lockstep_timeout)
+        if args.topics:
+            cfg.topics = args.topics
+        replay(cfg)
         return 0
 
     if args.cmd == "compare":

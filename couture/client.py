@@ -20,8 +20,9 @@ from pathlib import Path
 import msgspec
 import numpy as np
 
-from couture.bus import DEFAULT_ENDPOINT, BusConfig, open_session
+from couture.bus import DEFAULT_ENDPOINT, Bus, BusConfig, open_session
 from couture.mesh import GarmentMesh
+from schemas.arrays import Array, as_array
 from schemas.convert import mesh_to_msg
 from schemas.design import Design
 from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, SolveRequestMsg, SolveResultMsg, StatusMsg
@@ -64,10 +65,17 @@ class Client:
         self.status: dict[str, StatusMsg] = {}
         """latest status message per node name"""
         self._seen_generation = 0
-        self.bus = None
+        self._bus: Bus | None = None
+
+    @property
+    def bus(self) -> Bus:
+        """The open session, between ``__enter__`` and ``__exit__``."""
+        if self._bus is None:
+            raise RuntimeError(f"{type(self).__name__} {self.name!r} is not open: use it in a `with` block")
+        return self._bus
 
     def __enter__(self) -> "Client":
-        self.bus = open_session(self.cfg, name=self.name)
+        self._bus = open_session(self.cfg, name=self.name)
         try:
             self.bus.declare_token(self.name)
             self._pattern_pub = self.bus.publisher("pattern", PatternMsg)
@@ -136,7 +144,7 @@ class Client:
                   dofs: list[str] | None = None, generation: int | None = None, **extra: object) -> EditMsg:
         """Send one edit message (press / drag / release); returns it (with its edit_id)."""
         msg = EditMsg(edit_id=edit_id or uuid.uuid4().hex[:12], phase=phase, element=element,  # type: ignore[arg-type]
-                      dofs=list(dofs or ["x", "y"]), d=np.asarray(d, np.float64),
+                      dofs=list(dofs or ["x", "y"]), d=Array.from_numpy(np.asarray(d, np.float64)),
                       generation=self._seen_generation if generation is None else generation, **extra)  # type: ignore[arg-type]
         self._edit_pub.put(msg)
         return msg
@@ -193,6 +201,6 @@ class Client:
               timeout: float | None = None, design: Design | None = None) -> SolveResultMsg:
         """Solve ``mesh`` to equilibrium on a solver node (any if solver is None)."""
         mm = mesh if isinstance(mesh, MeshMsg) else mesh_to_msg(mesh)
-        req = SolveRequestMsg(mesh=mm, x_warm=warm_start, tol=tol, max_iters=max_iters, max_seconds=max_seconds,
+        req = SolveRequestMsg(mesh=mm, x_warm=as_array(warm_start, "float64"), tol=tol, max_iters=max_iters, max_seconds=max_seconds,
                               solver=solver or "", design=design, generation=mm.generation, level=mm.level)
         return self.bus.solve(req, timeout=timeout if timeout is not None else max_seconds + 10.0)

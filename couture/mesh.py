@@ -24,10 +24,11 @@ class GarmentMesh:
     """rest (pattern) positions [m], shape (n, 2), float64"""
     tris: np.ndarray
     """triangles as vertex indices, counter-clockwise in X, shape (m, 3), int32"""
-    x0: np.ndarray | None = None
+    # None is accepted and replaced in __post_init__, so readers always see an array
+    x0: np.ndarray = None  # type: ignore[assignment]
     """initial 3D placement [m], shape (n, 3), float64; None: the flat pattern at z = 0"""
-    tri_panel: np.ndarray | None = None
-    """panel index of each triangle, shape (m,), int32"""
+    tri_panel: np.ndarray = None  # type: ignore[assignment]
+    """panel index of each triangle, shape (m,), int32; None: all in panel 0"""
     panel_names: list[str] = field(default_factory=list)
     """panel names, indexed by ``tri_panel``"""
     seam_emitters: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))

@@ -30,7 +30,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from couture.bus import DEFAULT_ENDPOINT, DEFAULT_PORT, PARENT_PID_ENV, BusConfig, StopFlag, open_session
+from couture.bus import DEFAULT_ENDPOINT, DEFAULT_PORT, PARENT_PID_ENV, Bus, BusConfig, StopFlag, open_session
 from couture.bus.ports import free_port, port_is_free
 
 log = logging.getLogger("couture.supervisor")
@@ -107,7 +107,7 @@ class Supervisor:
         self.child_bus = BusConfig(session=cfg.session, connect=listen, listen=["tcp/127.0.0.1:0"], mode="peer",
                                    multicast=cfg.multicast)
         self.children = {s.name: _Child(s) for s in config.nodes}
-        self.bus = None
+        self.bus: Bus | None = None
         self.events: list[tuple[str, bool]] = []
 
     @property
@@ -119,8 +119,8 @@ class Supervisor:
         return {n: c.proc.pid for n, c in self.children.items() if c.proc is not None and c.proc.poll() is None}
 
     def __enter__(self) -> "Supervisor":
-        self.bus = open_session(self.bus_config, name="supervisor")
-        self.bus.watch_nodes(self._on_liveliness, history=False)
+        bus = self.bus = open_session(self.bus_config, name="supervisor")
+        bus.watch_nodes(self._on_liveliness, history=False)
         for c in self.children.values():
             self._spawn(c)
         # restarts happen however the supervisor is used (``couture up``,
@@ -193,17 +193,17 @@ class Supervisor:
             self._terminate(group)
 
     def _terminate(self, group: list[_Child]) -> None:
-        live = [c for c in group if c.proc is not None and c.proc.poll() is None]
-        for c in live:
-            _signal_group(c.proc, signal.SIGTERM)
+        live = [(c.spec.name, c.proc) for c in group if c.proc is not None and c.proc.poll() is None]
+        for _, proc in live:
+            _signal_group(proc, signal.SIGTERM)
         deadline = time.monotonic() + self.config.term_timeout_s
-        for c in live:
+        for name, proc in live:
             try:
-                c.proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+                proc.wait(timeout=max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
-                log.warning("node %s (pid %d) ignored SIGTERM; killing", c.spec.name, c.proc.pid)
-                _signal_group(c.proc, signal.SIGKILL)
-                c.proc.wait()
+                log.warning("node %s (pid %d) ignored SIGTERM; killing", name, proc.pid)
+                _signal_group(proc, signal.SIGKILL)
+                proc.wait()
         for c in group:  # grandchildren left in a group whose leader already exited
             if c.proc is not None:
                 _signal_group(c.proc, signal.SIGKILL)

@@ -10,7 +10,6 @@ from schemas.design import DESIGN_SCHEMA, Design
 from schemas.messages import (
     MESSAGE_TYPES,
     REGISTRY,
-    TOPIC_TYPES,
     DrapeMsg,
     EditMsg,
     MeshMsg,
@@ -24,13 +23,13 @@ from schemas.messages import (
     encode,
     json_schema,
     peek_schema,
-    type_for_topic,
     validate,
 )
+from schemas.topics import TOPICS, Delivery, Topic, topic_spec, type_for_topic
 
 __all__ = [
     "DTYPES", "Array", "as_array", "to_numpy", "DESIGN_SCHEMA", "Design",
-    "MESSAGE_TYPES", "REGISTRY", "TOPIC_TYPES", "Message", "PatternMsg", "EditMsg", "MeshMsg",
-    "DrapeMsg", "StatusMsg", "SolveRequestMsg", "SolveResultMsg", "SchemaError",
+    "MESSAGE_TYPES", "REGISTRY", "TOPICS", "Topic", "Delivery", "topic_spec", "Message", "PatternMsg", "EditMsg",
+    "MeshMsg", "DrapeMsg", "StatusMsg", "SolveRequestMsg", "SolveResultMsg", "SchemaError",
     "encode", "decode", "validate", "peek_schema", "json_schema", "type_for_topic",
 ]

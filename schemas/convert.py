@@ -5,7 +5,15 @@ from __future__ import annotations
 import numpy as np
 
 from couture.mesh import GarmentMesh
-from schemas.messages import MeshMsg
+from schemas.arrays import Array, as_array
+from schemas.messages import MeshMsg, SchemaError
+
+
+def _wire(name: str, a: np.ndarray | None) -> Array:
+    """A required MeshMsg array in its wire dtype (the one its ArraySpec allows)."""
+    if a is None:
+        raise SchemaError(f"{MeshMsg.TYPE}: field `$.{name}` is required")
+    return Array.from_numpy(a, MeshMsg.ARRAYS[name].dtypes[0])
 
 
 def mesh_to_msg(
@@ -24,11 +32,13 @@ def mesh_to_msg(
         generation=mesh.generation if generation is None else generation,
         level=mesh.level,  # type: ignore[arg-type]
         mesh_generation=mesh_generation,
-        X=mesh.X, x0=mesh.x0, tris=mesh.tris, tri_panel=mesh.tri_panel,
-        panel_names=list(mesh.panel_names),
-        seam_emitters=mesh.seam_emitters, seam_edges=mesh.seam_edges.reshape(-1, 2),
-        seam_weights=mesh.seam_weights, pinned=mesh.pinned,
-        psi=psi, psi_edit_id=psi_edit_id, fine_parent_tri=fine_parent_tri, fine_bary=fine_bary,
+        X=_wire("X", mesh.X), x0=_wire("x0", mesh.x0), tris=_wire("tris", mesh.tris),
+        tri_panel=_wire("tri_panel", mesh.tri_panel), panel_names=list(mesh.panel_names),
+        seam_emitters=_wire("seam_emitters", mesh.seam_emitters),
+        seam_edges=_wire("seam_edges", mesh.seam_edges.reshape(-1, 2)),
+        seam_weights=_wire("seam_weights", mesh.seam_weights), pinned=_wire("pinned", mesh.pinned),
+        psi=as_array(psi, "float64"), psi_edit_id=psi_edit_id,
+        fine_parent_tri=as_array(fine_parent_tri, "int32"), fine_bary=as_array(fine_bary, "float64"),
     )
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar, Literal, TypeVar, overload
 
 import msgspec
 import numpy as np
@@ -358,25 +358,6 @@ for _cls in MESSAGE_TYPES:
     _base, _v = _cls.TYPE.rsplit("/v", 1)
     _BY_BASE.setdefault(_base, {})[int(_v)] = _cls
 
-TOPIC_TYPES: dict[str, type[Message]] = {
-    "pattern": PatternMsg,
-    "edit": EditMsg,
-    "mesh/*": MeshMsg,
-    "drape/*": DrapeMsg,
-    "status/*": StatusMsg,
-    "solve/request": SolveRequestMsg,
-    "solve/result/*": SolveResultMsg,
-}
-"""which message type each key (relative to couture/<session>/) carries"""
-
-
-def type_for_topic(topic: str) -> type[Message] | None:
-    """Message class a relative key such as 'drape/fine' carries, or None."""
-    for pattern, cls in TOPIC_TYPES.items():
-        if pattern == topic or (pattern.endswith("/*") and topic.startswith(pattern[:-1]) and "/" not in topic[len(pattern) - 1:]):
-            return cls
-    return None
-
 
 # ---------------------------------------------------------------------------
 # encode / decode / validate
@@ -417,6 +398,13 @@ def peek_schema(data: bytes) -> str | None:
         return None
 
 
+M = TypeVar("M", bound=Message)
+
+
+@overload
+def decode(data: bytes | bytearray | memoryview, expected_type: type[M]) -> M: ...
+@overload
+def decode(data: bytes | bytearray | memoryview, expected_type: None = None) -> Message: ...
 def decode(data: bytes | bytearray | memoryview, expected_type: type[Message] | None = None) -> Message:
     """Parse and validate a payload; raises SchemaError (only) naming schema and field."""
     try:
@@ -484,7 +472,7 @@ def validate(msg: Message, path: str = "$") -> None:
             raise SchemaError(f"{t}: field `{fpath}`: dtype {a.dtype} not allowed here (allowed: {', '.join(spec.dtypes)})")
         if len(a.shape) != len(spec.shape):
             raise SchemaError(f"{t}: field `{fpath}`: shape {tuple(a.shape)} does not match {_shape_str(spec.shape)}")
-        for size, want in zip(a.shape, spec.shape):
+        for size, want in zip(a.shape, spec.shape, strict=True):
             if isinstance(want, int):
                 if size != want:
                     raise SchemaError(f"{t}: field `{fpath}`: shape {tuple(a.shape)} does not match {_shape_str(spec.shape)}")
@@ -519,6 +507,6 @@ def json_schema(cls: type[Message]) -> bytes:
 
 __all__ = [
     "SchemaError", "Message", "PatternMsg", "EditMsg", "MeshMsg", "DrapeMsg", "StatusMsg",
-    "SolveRequestMsg", "SolveResultMsg", "MESSAGE_TYPES", "REGISTRY", "TOPIC_TYPES", "type_for_topic",
+    "SolveRequestMsg", "SolveResultMsg", "MESSAGE_TYPES", "REGISTRY",
     "encode", "decode", "validate", "peek_schema", "json_schema", "ArraySpec",
 ]

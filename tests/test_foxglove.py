@@ -14,7 +14,13 @@ from mcap_protobuf.decoder import DecoderFactory
 from couture.mesh import grid_sheet
 from couture.recording import SessionWriter
 from couture.recording.foxglove import (
-    MANNEQUIN_OBJ, Y_UP_TO_Z_UP, export_foxglove, strain_colors, strain_scale, triangle_list, vertex_strain,
+    MANNEQUIN_OBJ,
+    Y_UP_TO_Z_UP,
+    export_foxglove,
+    strain_colors,
+    strain_scale,
+    triangle_list,
+    vertex_strain,
 )
 from schemas import DrapeMsg, PatternMsg, StatusMsg, encode
 from schemas.convert import mesh_to_msg

@@ -3,16 +3,14 @@ sample-count invariance, edit Jacobians against central finite differences."""
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 import pytest
 
-from schemas.design import Design, Sloper, Stroke
 from couture.pattern import SLOPERS, PatternError, draft
 from couture.pattern.edit import apply_edit, edit_elements, edit_jacobian
 from couture.pattern.geometry import signed_area
 from couture.pattern.validate import validate
+from schemas.design import Design, Sloper, Stroke
 
 BODY = ("waist_girth", "hip_girth", "bust_girth", "thigh_girth", "ankle_girth", "neck_girth", "upper_arm_girth")
 
@@ -148,8 +146,8 @@ def _fd_check(design, element, dd):
     h = 1e-4
     p1, p0 = draft(apply_edit(design, element, h * dd)), draft(apply_edit(design, element, -h * dd))
     mx = err = 0.0
-    for a, b in zip(p1.panels, p0.panels):
-        pairs = [(a.outline, b.outline, J[a.name].outline)] + list(zip(a.holes, b.holes, J[a.name].holes))
+    for a, b in zip(p1.panels, p0.panels, strict=True):
+        pairs = [(a.outline, b.outline, J[a.name].outline)] + list(zip(a.holes, b.holes, J[a.name].holes, strict=True))
         for P1, P0, Jp in pairs:
             fd = (P1 - P0) / (2 * h)
             an = Jp @ dd

@@ -9,12 +9,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from schemas.design import Design, Sloper
 from couture.pattern import SLOPERS, PatternError, draft, place
 from couture.pattern.geometry import point_in_polygon
-from couture.pattern.io import (design_from_json, design_json_schema, design_to_json, export_dxf, export_pdf,
-                                export_svg, import_dxf, load_design, save_design)
+from couture.pattern.io import (
+    design_from_json,
+    design_json_schema,
+    design_to_json,
+    export_dxf,
+    export_pdf,
+    export_svg,
+    import_dxf,
+    load_design,
+    save_design,
+)
 from couture.pattern.validate import validate
+from schemas.design import Design, Sloper
 
 EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "couture/pattern/examples").glob("*.json"))
 
@@ -51,7 +60,7 @@ def test_dxf_round_trip(tmp_path, units):
         got = pieces[pn.name]
         assert np.abs(got["outline"] - pn.outline).max() < 1e-4  # 0.1 mm
         assert len(got["holes"]) == len(pn.holes)
-        for a, b in zip(got["holes"], pn.holes):
+        for a, b in zip(got["holes"], pn.holes, strict=True):
             assert np.abs(a - b).max() < 1e-4
         assert got["cut"] is not None and np.ptp(got["cut"][:, 0]) > np.ptp(pn.outline[:, 0])  # allowance outside
     import ezdxf

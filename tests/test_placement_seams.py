@@ -90,8 +90,8 @@ def test_diamond_dart_is_sewn_across_its_hole():
     assert set(e) <= set(emit_side) and set(edges.ravel()) <= set(recv_side)
     # correspondence by normalized arc length (top to bottom on both sides)
     X = mesh.X
-    ue = dict(zip(emit_side.tolist(), _arc(X, emit_side)))
-    ur = dict(zip(recv_side.tolist(), _arc(X, recv_side)))
+    ue = dict(zip(emit_side.tolist(), _arc(X, emit_side), strict=True))
+    ur = dict(zip(recv_side.tolist(), _arc(X, recv_side), strict=True))
     u_recv = (1 - w) * np.array([ur[a] for a in edges[:, 0]]) + w * np.array([ur[b] for b in edges[:, 1]])
     np.testing.assert_allclose(u_recv, [ue[v] for v in e.tolist()], atol=1e-9)
 

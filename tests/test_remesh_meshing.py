@@ -61,7 +61,7 @@ def test_polyline_vertices_kept_exactly_and_chains_on_edges():
     ce = set()
     for lp in r.loops:
         c = lp.chain
-        ce |= {tuple(sorted((int(a), int(b)))) for a, b in zip(c, np.roll(c, -1))}
+        ce |= {tuple(sorted((int(a), int(b)))) for a, b in zip(c, np.roll(c, -1), strict=True)}
     assert be == ce
 
 
@@ -125,14 +125,14 @@ def test_unequal_seam_maps_by_normalized_arc_length():
     assert set(m.seam_emitters.tolist()) == set(cb.tolist())
     assert len(m.seam_emitters) == len(cb)
     # every receiving edge lies on a's segment, receiving points at equal normalized arc length
-    ua = dict(zip(ca.tolist(), _arc(m.X, ca)))
-    ub = dict(zip(cb.tolist(), _arc(m.X, cb)))
-    for e, (a, b), w in zip(m.seam_emitters, m.seam_edges, m.seam_weights):
+    ua = dict(zip(ca.tolist(), _arc(m.X, ca), strict=True))
+    ub = dict(zip(cb.tolist(), _arc(m.X, cb), strict=True))
+    for e, (a, b), w in zip(m.seam_emitters, m.seam_edges, m.seam_weights, strict=True):
         assert a in ua and b in ua and 0 <= w <= 1
         u_recv = (1 - w) * ua[int(a)] + w * ua[int(b)]
         assert u_recv == pytest.approx(ub[int(e)], abs=1e-12)
     # ends sewn to ends: the bottom corners and the top corners meet exactly
-    ends = {int(e): (int(a), int(b), w) for e, (a, b), w in zip(m.seam_emitters, m.seam_edges, m.seam_weights)}
+    ends = {int(e): (int(a), int(b), w) for e, (a, b), w in zip(m.seam_emitters, m.seam_edges, m.seam_weights, strict=True)}
     a0, b0, w0 = ends[int(cb[0])]
     assert (w0 == 0 and a0 == ca[0]) or (w0 == 1 and b0 == ca[0])
     a1, b1, w1 = ends[int(cb[-1])]
@@ -177,7 +177,7 @@ def test_tube_corners_get_no_double_springs():
     r = mesh_pattern(d, 3000)
     m = r.mesh
     target = np.where(m.seam_weights == 0, m.seam_edges[:, 0], np.where(m.seam_weights == 1, m.seam_edges[:, 1], -1))
-    pairs = [(int(e), int(t)) for e, t in zip(m.seam_emitters, target) if t >= 0]
+    pairs = [(int(e), int(t)) for e, t in zip(m.seam_emitters, target, strict=True) if t >= 0]
     assert len(pairs) == len(set(pairs))
     # a vertex emits at most once per seam
     for s in range(len(d.seams)):

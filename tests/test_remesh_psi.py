@@ -58,14 +58,13 @@ def test_psi_is_the_mesh_motion_of_the_moved_polylines(l_and_u):
     P = psi(cp, J)
     assert np.abs(P).max() > 0.1
     moved = DraftedPattern([Panel(p.name, p.outline + J[p.name].outline @ dd,
-                                  [h + jh @ dd for h, jh in zip(p.holes, J[p.name].holes)]) for p in d.panels])
+                                  [h + jh @ dd for h, jh in zip(p.holes, J[p.name].holes, strict=True)]) for p in d.panels])
     np.testing.assert_allclose(follow_pattern(cp, moved) - r.mesh.X, P @ dd, atol=1e-13)
     # on the boundary: polyline vertices carry their J, inserted points interpolate their edge's ends
     for lp in r.loops:
         jac = J[r.mesh.panel_names[lp.panel]]
         Jl = jac.outline if lp.loop == 0 else jac.holes[lp.loop - 1]
         np.testing.assert_allclose(P[lp.poly_to_mesh], Jl, atol=1e-14)
-        k = lp.n_poly
         want = (1 - lp.chain_t)[:, None, None] * Jl[lp.chain_edge] + lp.chain_t[:, None, None] * Jl[lp.chain_next]
         np.testing.assert_allclose(P[lp.chain], want, atol=1e-14)
 

@@ -2,9 +2,8 @@
 
 import numpy as np
 import pytest
-from scipy.spatial import Delaunay
 
-from couture.pattern.drafted import DraftedPattern
+from couture.pattern.drafted import DraftedPattern, PanelJacobian
 from couture.remesh import (
     build_coordinates,
     flip_to_delaunay,
@@ -21,7 +20,6 @@ from couture.remesh import (
 from couture.remesh.fixtures import l_panel, rectangle_panel, sewn_pair
 from couture.remesh.kernels import _incircle  # noqa: F401 (numba dispatcher, used below)
 from couture.remesh.quality import boundary_edges, neighbours
-from couture.pattern.drafted import PanelJacobian
 
 
 def test_quality_measure():

@@ -29,6 +29,7 @@ from schemas import (
 )
 from schemas.convert import mesh_to_msg, msg_to_mesh
 from schemas.design import Stroke
+from schemas.topics import TOPICS, key_intersects, topic_spec
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64, min_value=-1e6, max_value=1e6)
 ints = st.integers(min_value=0, max_value=2**40)
@@ -280,6 +281,30 @@ def test_mesh_message_round_trips_garment_mesh():
         assert getattr(back, name).dtype == getattr(g, name).dtype
     assert back.panel_names == ["front"] and back.level == "coarse" and back.generation == 4
     back.X[0, 0] = 1.0  # writable copy, not a view of the message bytes
+
+
+def test_every_message_type_has_a_topic_and_every_topic_a_known_type():
+    table_types = {t.msg_type for t in TOPICS}
+    assert table_types == set(MESSAGE_TYPES), "each message type needs a row in schemas.topics.TOPICS"
+    keys = [t.key for t in TOPICS]
+    assert len(keys) == len(set(keys))
+    for t in TOPICS:
+        assert not (t.replayed and t.compared), f"{t.key} is either an input or an output"
+        assert not (t.replayed or t.compared) or t.recorded, f"{t.key}: replay and compare read recordings"
+        # DROP may lose large fragmented samples (Zenoh 1.10): never for state a late joiner resumes from
+        assert not (t.delivery.drop and t.delivery.history), t.key
+
+
+def test_key_expressions_intersect_like_zenoh():
+    assert key_intersects("mesh/*", "mesh/fine")
+    assert key_intersects("**", "solve/result/*")
+    assert key_intersects("solve/**", "solve/result/*")
+    assert key_intersects("status/*", "status/ui")
+    assert not key_intersects("solve/*", "solve/result/*")
+    assert not key_intersects("drape/*", "drape/fine/extra")
+    assert not key_intersects("mesh/*", "mesh")
+    assert topic_spec("status/solver-kinetic").msg_type is StatusMsg
+    assert topic_spec("bench/done") is None
 
 
 def test_topic_types():

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from sens_testmodel import SimpleFabric, sheet_pinned_corners, strip_over_sphere
 
 from couture.cloth.testing import newton

@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from sens_testmodel import skirt_design, skirt_on_dress_form
 from test_sensitivity_gmls import look_at, perspective, to_px
 
 from couture.pattern.edit import edit_jacobian
-from couture.remesh import build_coordinates, psi as remesh_psi
+from couture.remesh import build_coordinates
+from couture.remesh import psi as remesh_psi
 from couture.sensitivity import SensitivityFactor, drag_to_param
 
 

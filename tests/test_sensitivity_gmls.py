@@ -59,13 +59,13 @@ def test_gmls_reproduces_samples_at_sample_points():
     xs, Ss = nonlinear_samples(ds)
     for eps2, tol in [(1e-14, 1e-8), (1e-3, 0.05)]:
         c = GMLSCache(1, dtype=np.float64, eps2=eps2)
-        for d, x, S in zip(ds, xs, Ss):
+        for d, x, S in zip(ds, xs, Ss, strict=True):
             c.add(d, x, S)
-        for d, x in zip(ds, xs):
+        for d, x in zip(ds, xs, strict=True):
             err = np.abs(c.predict(d) - x).max()
             assert err < tol * (1 if eps2 < 1e-6 else np.abs(x).max()), (eps2, d, err)
     c = GMLSCache(1, dtype=np.float64)
-    for d, x, S in zip(ds, xs, Ss):
+    for d, x, S in zip(ds, xs, Ss, strict=True):
         c.add(d, x, S)
     lin_from_prev = xs[1] + Ss[1] @ (np.asarray(ds[2]) - ds[1])
     assert np.abs(c.predict(ds[2]) - xs[2]).max() < 0.2 * np.abs(lin_from_prev - xs[2]).max()
@@ -89,7 +89,7 @@ def test_d_scale_is_a_change_of_units():
     xs, Ss = nonlinear_samples(ds)
     a = GMLSCache(1, dtype=np.float64, d_scale=0.01)
     b = GMLSCache(1, dtype=np.float64, d_scale=1.0)
-    for d, x, S in zip(ds, xs, Ss):
+    for d, x, S in zip(ds, xs, Ss, strict=True):
         a.add(d, x, S)
         b.add(np.asarray(d) * 100, x, S / 100)
     assert np.allclose(a.predict((0.03, 0.004)), b.predict((3.0, 0.4)), atol=1e-12)
@@ -99,7 +99,7 @@ def test_mls_with_collinear_samples_is_finite():
     ds = [(0.0, 0.0), (0.1, 0.0), (0.2, 0.0)]
     xs, _ = nonlinear_samples(ds)
     c = GMLSCache(1, dtype=np.float64)
-    for d, x in zip(ds, xs):
+    for d, x in zip(ds, xs, strict=True):
         c.add(d, x)
     y = c.predict((0.15, 0.05), method="mls")
     assert np.all(np.isfinite(y))

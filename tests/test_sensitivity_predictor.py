@@ -9,7 +9,6 @@ import time
 
 import numpy as np
 import pytest
-
 from sens_testmodel import strip_over_sphere
 
 from couture.sensitivity import Predictor

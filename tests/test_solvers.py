@@ -12,14 +12,21 @@ import hashlib
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from solver_testmodel import cloth_hanging_sheet, fabric, horizontal
 
 from couture.cloth import ClothModel, Scene
 from couture.mesh import grid_sheet
 from couture.solvers import SOLVERS, get_solver
 from couture.solvers.cascadic import Prolongation, locate, polish_prolongated, solve_cascadic
-from couture.solvers.linalg import IC0, FactorizationError, ReducedSystem, available_backends, factorize, pcg, seam_first_order
-
-from solver_testmodel import cloth_hanging_sheet, fabric, horizontal
+from couture.solvers.linalg import (
+    IC0,
+    FactorizationError,
+    ReducedSystem,
+    available_backends,
+    factorize,
+    pcg,
+    seam_first_order,
+)
 
 
 def test_registry():

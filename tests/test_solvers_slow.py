@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from solver_testmodel import cloth_edge_pinned_sheet, cloth_sphere_drape, fabric
 
 from couture.solvers import get_solver
-
-from solver_testmodel import cloth_edge_pinned_sheet, cloth_sphere_drape, fabric
 
 
 @pytest.mark.slow

@@ -11,7 +11,6 @@ import os
 
 import numpy as np
 import pytest
-
 from browser.chromium import ARTIFACTS, available, browser_page, stable_camera, wait_camera, wait_until
 
 pytestmark = [pytest.mark.browser, pytest.mark.skipif(not available() and not os.environ.get("CI"),
@@ -104,7 +103,7 @@ def test_drape_tug_yields_edits_with_camera(session):
         n0 = len(events["edit"])
         _drag(page, px, px + np.array([40.0, 0.0]))
         try:
-            wait_until(lambda: any(e["phase"] == "release" for e in events["edit"][n0:]), 30, page)
+            wait_until(lambda n0=n0: any(e["phase"] == "release" for e in events["edit"][n0:]), 30, page)
             break
         except TimeoutError:
             tries.append([e["phase"] for e in events["edit"][n0:]])

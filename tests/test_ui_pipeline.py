@@ -18,7 +18,6 @@ tests/test_ui_app.py.
 from __future__ import annotations
 
 import os
-
 import threading
 import time
 import uuid
@@ -26,7 +25,6 @@ import uuid
 import msgspec
 import numpy as np
 import pytest
-
 from browser.chromium import ARTIFACTS, available, browser_page, wait_until
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow, pytest.mark.timeout(420),
@@ -233,7 +231,7 @@ def test_c_control_point_drag_predicts_then_solver_commits(live):
     element = "cv:gore0:hem:0"
     start = _pattern_pixels(page, design, element)
     press = None
-    for attempt in range(3):  # the page draws the handles a moment after the pattern
+    for _attempt in range(3):  # the page draws the handles a moment after the pattern
         n_edits = len(tap.edits)
         page.mouse.move(*start)
         page.mouse.down()
@@ -241,7 +239,8 @@ def test_c_control_point_drag_predicts_then_solver_commits(live):
             page.mouse.move(start[0], start[1] + 4 * k)
             page.wait_for_timeout(60)
         try:
-            press = wait_until(lambda: next((e for e in tap.edits[n_edits:] if e.phase == "press"), None), 15, page)
+            press = wait_until(lambda n_edits=n_edits: next((e for e in tap.edits[n_edits:] if e.phase == "press"), None),
+                               15, page)
             break
         except TimeoutError:
             page.mouse.up()

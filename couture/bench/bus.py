@@ -12,13 +12,12 @@ publishes 10,000-vertex drapes (x float32, ~120 KB payload).
   ``--seconds``; the MCAP must hold every message sent; MB/s written.
   Then as fast as possible, to find the recorder's ceiling.
 
-Prints a table and writes JSON to bench/results/bus.json.
+Prints a table and writes ``bus.json`` to the results folder (``--out``, default bench/results/).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import signal
@@ -31,12 +30,15 @@ from pathlib import Path
 
 import numpy as np
 
+from couture.bench import RESULTS_DIR, add_out_arg, write_results
+
 N_VERTICES = 10_000
 
 
 def _publisher(args: argparse.Namespace) -> None:
     """Child: publish drapes at ``rate`` Hz (0: as fast as possible) for ``seconds``."""
     from couture.bus import BusConfig, open_session
+    from schemas.arrays import Array
     from schemas.messages import DrapeMsg
 
     x = np.random.default_rng(0).normal(size=(N_VERTICES, 3)).astype(np.float32)
@@ -52,7 +54,7 @@ def _publisher(args: argparse.Namespace) -> None:
                 due = t0 + n / args.rate
                 while (d := due - time.perf_counter()) > 0:
                     time.sleep(d if d > 0.002 else 0)
-            pub.put(DrapeMsg(level="fine", x=x, generation=1, residual=1e-4, iterations=n, solver="bench"))
+            pub.put(DrapeMsg(level="fine", x=Array.from_numpy(x), generation=1, residual=1e-4, iterations=n, solver="bench"))
             n += 1
         bus.zenoh.put(bus.key("bench/done"), str(n).encode())
         time.sleep(0.5)
@@ -67,7 +69,8 @@ def _spawn_pub(session: str, endpoint: str, rate: float, seconds: float) -> subp
     )
 
 
-def run(seconds: float = 5.0, out: str | None = "bench/results/bus.json") -> dict:
+def run(seconds: float = 5.0, out: Path | str | None = RESULTS_DIR) -> dict:
+    """Measure; ``out``: results folder for bus.json (None: write nothing)."""
     from couture.bus import BusConfig, free_port, open_session
 
     port = free_port()
@@ -110,7 +113,9 @@ def run(seconds: float = 5.0, out: str | None = "bench/results/bus.json") -> dic
         probe.undeclare()
 
         # 2. throughput
-        lat.clear(); count[:] = [0, 0.0, 0.0]; done.clear()
+        lat.clear()
+        count[:] = [0, 0.0, 0.0]
+        done.clear()
         p = _spawn_pub(session, endpoint, 0, 3.0)
         sent = int(p.communicate(timeout=60)[0].split()[-1])
         done.wait(5)
@@ -152,8 +157,7 @@ def run(seconds: float = 5.0, out: str | None = "bench/results/bus.json") -> dic
     results["goals"] = {"p50<=1ms": lt["p50_ms"] <= 1.0, "p99<=3ms": lt["p99_ms"] <= 3.0,
                         "recorder keeps 100 drapes/s": results["recorder_100hz"]["lost"] == 0}
     if out:
-        Path(out).parent.mkdir(parents=True, exist_ok=True)
-        Path(out).write_text(json.dumps(results, indent=2))
+        write_results(out, "bus", results)
     return results
 
 
@@ -179,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--connect", default="")
     p.add_argument("--rate", type=float, default=60.0)
     p.add_argument("--seconds", type=float, default=5.0)
-    p.add_argument("--out", default="bench/results/bus.json")
+    add_out_arg(p)
     a = p.parse_args(argv)
     if a.role == "pub":
         _publisher(a)

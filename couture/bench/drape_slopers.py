@@ -9,19 +9,20 @@ and at the end, relative residual reached, time, the smallest signed distance
 of any vertex to the body (the grid SDF; < 0 is inside), and whether the
 garment slid down (its top more than 10 cm below where it was placed).
 
-Prints a table, writes ``bench/results/drape_slopers.json`` and one PNG per
-sloper under ``bench/results/drapes/`` (body and garment, front and side).
+Prints a table, writes ``drape_slopers.json`` to the results folder (``--out``,
+default bench/results/) and one PNG per sloper under its ``drapes/`` (body and
+garment, front and side).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import time
-from dataclasses import dataclass, asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+
+from couture.bench import add_out_arg, write_results
 
 SLID_LIMIT = 0.10
 """[m] the garment's top may drop this much below its placed height"""
@@ -97,6 +98,8 @@ def drape(kind: str, vertices: int = 1600, solvers=("newton", "kinetic"), max_se
             best = (row, x)
         if out.converged:
             break
+    if best is None:
+        raise ValueError("drape needs at least one solver")
     return best[0], best[1], mesh
 
 
@@ -142,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--solvers", nargs="*", default=["newton", "kinetic"])
     ap.add_argument("--max-seconds", type=float, default=60.0)
     ap.add_argument("--tol", type=float, default=1e-4)
-    ap.add_argument("--out", default="bench/results")
+    add_out_arg(ap)
     ap.add_argument("--no-png", action="store_true")
     args = ap.parse_args(argv)
     out = Path(args.out)
@@ -160,9 +163,8 @@ def main(argv: list[str] | None = None) -> int:
         if not args.no_png:
             render(out / "drapes" / f"{kind}.png", kind, mesh, x,
                    f"{kind}: {row.solver}, residual {row.residual:.1e}, {row.seconds:.0f} s")
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "drape_slopers.json").write_text(json.dumps(
-        {"rows": [dict(asdict(r), dressed=r.dressed) for r in rows], "args": vars(args)}, indent=2))
+    write_results(out, "drape_slopers", {"rows": [dict(asdict(r), dressed=r.dressed) for r in rows],
+                                         "args": dict(vars(args), out=str(args.out))})
     return 0
 
 

@@ -12,18 +12,17 @@ no prediction of their own and are counted as ``coalesced``.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import sys
 import threading
 import time
 import uuid
-from pathlib import Path
 
 import numpy as np
 
 from couture import supervisor
+from couture.bench import add_out_arg, write_results
 from couture.bus import BusConfig, free_port
 from couture.client import Client
 from schemas import DrapeMsg
@@ -97,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sizes", default="1600,10000", help="fine vertex targets")
     ap.add_argument("--drags", type=int, default=180)
     ap.add_argument("--hz", type=float, default=60.0)
-    ap.add_argument("--out", default="bench/results/edit_e2e.json")
+    add_out_arg(ap)
     a = ap.parse_args(argv)
     rows = [run(int(s), a.drags, a.hz) for s in a.sizes.split(",")]
     print(f"{'vertices':>9} {'answered':>9} {'coalesced':>9} {'p50 ms':>8} {'p90 ms':>8} {'p99 ms':>8}")
@@ -108,12 +107,10 @@ def main(argv: list[str] | None = None) -> int:
     goal = {"p50_ms": 16.0, "measured": big["p50_ms"], "met": big["p50_ms"] is not None and big["p50_ms"] <= 16.0}
     print(f"goal: edit-to-prediction p50 <= 16 ms at {big['fine_vertices']} vertices: "
           f"{big['p50_ms']} ms -> {'met' if goal['met'] else 'NOT met'}")
-    out = {"bench": "edit_e2e", "machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
-                                            "load_average_at_end": list(os.getloadavg())},
+    out = {"bench": "edit", "machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
+                                        "load_average_at_end": list(os.getloadavg())},
            "rows": rows, "goal": goal}
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(out, indent=2))
-    print(f"wrote {a.out}")
+    print(f"wrote {write_results(a.out, 'edit', out)}")
     return 0
 
 

@@ -5,18 +5,18 @@ fixtures when the pattern package is unavailable): fine mesh (~10k vertices)
 from the drafted pattern, the PMVC precompute (once per mesh), Ψ per edit
 (one sparse product), and a Delaunay flip pass after a 30 % stretch.
 Medians over repeats. Goals: remesh <= 60 ms, Ψ <= 20 ms at 10k vertices.
-Prints a table and writes JSON to bench/results/remesh.json.
+Prints a table and writes ``remesh.json`` to the results folder (``--out``, default bench/results/).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import time
-from pathlib import Path
 
 import numpy as np
+
+from couture.bench import add_out_arg, write_results
 
 GOAL_REMESH_MS = 60.0
 GOAL_PSI_MS = 20.0
@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--vertices", type=int, default=10000, help="target vertices of the fine mesh")
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--fixtures", action="store_true", help="bench the remesher's fixtures, not the slopers")
-    ap.add_argument("--out", type=Path, default=Path("bench/results/remesh.json"))
+    add_out_arg(ap)
     args = ap.parse_args(argv)
 
     rows = {}
@@ -129,9 +129,7 @@ def main(argv: list[str] | None = None) -> int:
         "machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "platform": platform.platform()},
         "patterns": rows,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2))
-    print(f"wrote {args.out}")
+    print(f"wrote {write_results(args.out, 'remesh', result)}")
     return 0
 
 

@@ -8,20 +8,21 @@ linear / GMLS / MLS prediction, the GMLS weights alone, the error estimate
 (one force evaluation at the edited rest shape, plus the rest-shape update it
 needs), and cache memory. Goals at 10k: press ≤ 50 ms, GMLS ≤ 0.2 ms.
 
-Writes a table to stdout and JSON to ``bench/results/sensitivity.json``.
+Writes a table to stdout and ``sensitivity.json`` to the results folder
+(``--out``, default bench/results/).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
+
+from couture.bench import add_out_arg, write_results
 
 GOALS = {"press_ms": 50.0, "gmls_ms": 0.2}
 
@@ -88,7 +89,7 @@ def bench_size(nx: int, ny: int, solve_seconds: float, repeats: int, log=print) 
     cache = GMLSCache(n)
     cache.add((0.0, 0.0), x, S, anchor=True)
     # two more first-order samples along the drag (stand-ins for solver equilibria)
-    for k, dd in enumerate((0.05, 0.10), 1):
+    for dd in (0.05, 0.10):
         cache.add((dd, 0.0), x + S @ np.array([dd, 0.0]), S)
     d = np.array([0.12, 0.01])
     cache.predict(d)
@@ -161,9 +162,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sizes", default="63x20,156x50", help="strip grid sizes nx x ny (63x20 ≈ 1.6k, 156x50 ≈ 10k vertices)")
     ap.add_argument("--solve-seconds", type=float, default=90.0, help="cap on each drape solve [s]")
     ap.add_argument("--repeats", type=int, default=7)
-    ap.add_argument("--out", default="bench/results/sensitivity.json")
+    add_out_arg(ap)
     args = ap.parse_args(argv)
-    rows = [bench_size(*map(int, s.split("x")), args.solve_seconds, args.repeats) for s in args.sizes.split(",")]
+    grids = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
+    rows = [bench_size(nx, ny, args.solve_seconds, args.repeats) for nx, ny in grids]
     print(table(rows))
     big = max(rows, key=lambda r: r["vertices"])
     verdict = {k: {"goal_ms": g, "measured_ms": big[k], "met": big[k] <= g} for k, g in GOALS.items()}
@@ -179,10 +181,7 @@ def main(argv: list[str] | None = None) -> int:
         "rows": rows,
         "goals": verdict,
     }
-    path = Path(args.out)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(out, indent=2))
-    print(f"wrote {path}")
+    print(f"wrote {write_results(args.out, 'sensitivity', out)}")
     return 0
 
 

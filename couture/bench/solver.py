@@ -11,9 +11,9 @@ Per solver and level: time to relative residual 1e-4 and 1e-6 (from the solve
 history), or the residual reached within the cap; steps/s and ms per step;
 assembly, linear-solve (factorization + solves) and friction time; peak RSS
 growth; numba compile (first call, on a tiny sheet) measured separately.
-Table on stdout, JSON to bench/results/solver.json, convergence plot
-(relative residual vs wall time, log scale) to
-bench/results/solver_convergence.png. ``--quick``: coarse level only, short
+Table on stdout; ``solver.json`` and the convergence plot (relative residual
+vs wall time, log scale) ``solver_convergence.png`` to the results folder
+(``--out``, default bench/results/). ``--quick``: coarse level only, short
 caps (< 2 minutes).
 
 Timings on a shared 2-core machine are noisy: compare solvers within one run.
@@ -22,13 +22,14 @@ Timings on a shared 2-core machine are noisy: compare solvers within one run.
 from __future__ import annotations
 
 import argparse
-import json
 import resource
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from couture.bench import add_out_arg, write_results
 
 GOALS = {"coarse_steps_per_s": 50.0, "fine_steps_per_s": 10.0, "fine_drape_1e-4_s": 5.0}
 
@@ -164,7 +165,7 @@ def plot(rows, path: Path) -> None:
 
     levels = sorted({r["level"] for r in rows}, key=lambda s: ("cascadic" in s, s))
     fig, axes = plt.subplots(1, len(levels), figsize=(5.5 * len(levels), 4.2), squeeze=False)
-    for ax, level in zip(axes[0], levels):
+    for ax, level in zip(axes[0], levels, strict=True):
         for r in rows:
             if r["level"] != level or not r["history"]:
                 continue
@@ -190,8 +191,7 @@ def main(argv=None) -> int:
     ap.add_argument("--levels", default=None, help="comma list of coarse,fine (default both; --quick: coarse)")
     ap.add_argument("--no-cascadic", action="store_true", help="skip the cascadic (solver node) runs")
     ap.add_argument("--max-seconds", type=float, default=None, help="cap per solve [s] (coarse; fine gets 2x)")
-    ap.add_argument("--out", default="bench/results/solver.json")
-    ap.add_argument("--plot", default=None, help="PNG path (default: beside --out, solver_convergence.png)")
+    add_out_arg(ap)
     args = ap.parse_args(argv)
 
     from couture.solvers.linalg import available_backends
@@ -232,12 +232,10 @@ def main(argv=None) -> int:
             print(f"  {r['solver']} {r['level']}: {r['diagnosis']}")
     print("numba first call vs warm [s]:", {k: (round(v["first_s"], 2), round(v["warm_s"], 3)) for k, v in compile_t.items()})
     print("goals:", GOALS)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"scene": "default skirt (Design()), friction on", "goals": GOALS,
-                               "backends": available_backends(), "numba": compile_t, "runs": rows,
-                               "quick": args.quick, "cap_s": cap}, indent=2, default=float))
-    png = Path(args.plot) if args.plot else out.with_name("solver_convergence.png")
+    out = write_results(args.out, "solver", {"scene": "default skirt (Design()), friction on", "goals": GOALS,
+                                             "backends": available_backends(), "numba": compile_t, "runs": rows,
+                                             "quick": args.quick, "cap_s": cap}, default=float)
+    png = Path(args.out) / "solver_convergence.png"
     plot(rows, png)
     print(f"wrote {out} and {png}")
     return 0

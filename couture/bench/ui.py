@@ -18,7 +18,8 @@ Debian chromium on the 3D view, then:
    which bounds the edit rate from one pointer.
 
 Both runs repeat for the plain drape (one mesh, vertex updates only) and the
-banded strain colour map. Results go to stdout as JSON (and ``--out``).
+banded strain colour map. Results go to stdout as JSON and to
+``ui.json`` in the results folder (``--out``, default bench/results/).
 """
 
 from __future__ import annotations
@@ -26,11 +27,12 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
+
+from couture.bench import add_out_arg, write_results
 
 _OBSERVER_JS = """
 () => {
@@ -53,7 +55,7 @@ _OBSERVER_JS = """
 
 
 def _stats(frames: list[dict], t0_ms: float, t1_ms: float) -> dict:
-    seqs = {}
+    seqs: dict[int, dict] = {}
     for f in frames:
         if f["tag"] is not None and t0_ms <= f["t_raf"] <= t1_ms + 2000:
             seqs.setdefault(f["seq"], f)
@@ -103,7 +105,8 @@ def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, 
                 return d ? c.getParameter(d.UNMASKED_RENDERER_WEBGL) : 'unknown'; }""")
             out["webgl_renderer"] = renderer
             for field in fields:
-                ui.gui_field.value = field
+                # the handle has a setter at run time; its stub types value as read-only
+                ui.gui_field.value = field  # type: ignore[misc]
                 ui._on_field()
                 page.wait_for_timeout(500)
                 # -- stream
@@ -131,7 +134,7 @@ def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, 
                 px = cam.to_pixels(x0[v][None])[0]
                 edits: list[dict] = []
 
-                def on_edit(e: dict) -> None:
+                def on_edit(e: dict, edits: list[dict] = edits, v: int = v) -> None:
                     t = time.time() * 1000
                     edits.append(e)
                     dx = np.array([e["d"][0], -e["d"][1], 0.0]) * 0.001
@@ -150,7 +153,7 @@ def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, 
                     page.wait_for_timeout(1000 / 60)
                 page.mouse.up()
                 t1 = time.time() * 1000
-                wait_until(lambda: any(e["phase"] == "release" for e in edits), 20, page)
+                wait_until(lambda edits=edits: any(e["phase"] == "release" for e in edits), 20, page)
                 page.wait_for_timeout(1500)
                 ui.on_edit = None
                 frames = page.evaluate("() => window.__couture.frames")
@@ -169,14 +172,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seconds", type=float, default=5.0)
     ap.add_argument("--offer-hz", type=float, default=120.0)
     ap.add_argument("--fields", default="none,strain", help="colour maps to run, comma-separated")
-    ap.add_argument("--out", type=Path, default=Path("bench/results/ui.json"), help="write the JSON here")
+    add_out_arg(ap)
     a = ap.parse_args(argv)
     res = run(a.vertices, a.seconds, a.offer_hz, tuple(a.fields.split(",")))
     text = json.dumps(res, indent=2)
     print(text)
-    if a.out:
-        a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(text)
+    write_results(a.out, "ui", res)
     return 0
 
 

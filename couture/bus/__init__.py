@@ -7,10 +7,10 @@
 """
 
 from couture.bus.node import PARENT_PID_ENV, Node, StopFlag
+from couture.bus.ports import free_port
 from couture.bus.session import (
     DEFAULT_ENDPOINT,
     DEFAULT_PORT,
-    DROP_TOPICS,
     Bus,
     BusConfig,
     Stats,
@@ -19,9 +19,8 @@ from couture.bus.session import (
     bus_config_from_args,
     open_session,
 )
-from couture.bus.ports import free_port
 
 __all__ = [
-    "Bus", "BusConfig", "Node", "StopFlag", "Stats", "TypedPublisher", "DROP_TOPICS", "DEFAULT_ENDPOINT", "DEFAULT_PORT",
+    "Bus", "BusConfig", "Node", "StopFlag", "Stats", "TypedPublisher", "DEFAULT_ENDPOINT", "DEFAULT_PORT",
     "PARENT_PID_ENV", "add_bus_args", "bus_config_from_args", "open_session", "free_port",
 ]

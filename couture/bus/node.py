@@ -88,8 +88,15 @@ class Node:
         self._install_signals = install_signals
         self._announce = announce
         self._t0 = time.monotonic()
-        self.bus: Bus | None = None  # type: ignore[assignment]
+        self._bus: Bus | None = None
         self._status_thread: threading.Thread | None = None
+
+    @property
+    def bus(self) -> Bus:
+        """The open session, between ``__enter__`` and ``__exit__``."""
+        if self._bus is None:
+            raise RuntimeError(f"{type(self).__name__} {self.name!r} is not open: use it in a `with` block")
+        return self._bus
 
     def announce(self) -> None:
         """Declare the liveliness token now (for a node built with
@@ -110,7 +117,7 @@ class Node:
     def __enter__(self) -> "Node":
         if self._install_signals:
             self.stop_flag.install()
-        self.bus = open_session(self.cfg, name=self.name)
+        self._bus = open_session(self.cfg, name=self.name)
         try:
             self._status_pub = self.bus.publisher(f"status/{self.name}", StatusMsg)
             if self._announce:

@@ -29,6 +29,7 @@ from typing import Any, Callable, Generic, TypeVar
 import zenoh
 import zenoh.ext
 
+from schemas import topics
 from schemas.messages import (
     Message,
     SchemaError,
@@ -36,26 +37,11 @@ from schemas.messages import (
     SolveResultMsg,
     decode,
     encode,
-    type_for_topic,
 )
 
 log = logging.getLogger("couture.bus")
 
 M = TypeVar("M", bound=Message)
-
-DROP_TOPICS = ("drape/predicted",)
-"""high-rate previews: a late one is worthless, so DROP under congestion; everything else BLOCKs"""
-
-EXPRESS_TOPICS = ("edit", "drape/predicted")
-# State topics: the publisher keeps its last sample and a subscriber that joins
-# late (a restarted solver, a reopened UI) receives it on declaration, so a
-# node resumes from the latest pattern, meshes and drapes (zenoh-ext advanced
-# pub/sub with history).
-STATE_TOPICS = ("pattern", "mesh/coarse", "mesh/fine", "drape/coarse", "drape/fine")
-STATE_HISTORY = {"pattern": 8}
-"""samples kept per state topic (default 1): a few patterns, so a late joiner
-also sees the last *valid* design when the newest one was rejected"""
-"""latency-critical: sent without batching"""
 
 RESERVED_SOLVER_NAMES = ("request", "result")
 
@@ -181,37 +167,48 @@ class Stats:
             return dict(self.counters)
 
 
-def topic_matches_state(pattern: str, topic: str) -> bool:
-    """Whether a subscription ``pattern`` (may end in ``*``/``**``) covers ``topic``."""
-    if pattern.endswith("**"):
-        return topic.startswith(pattern[:-2])
-    if pattern.endswith("*"):
-        head = pattern[:-1]
-        return topic.startswith(head) and "/" not in topic[len(head):]
-    return pattern == topic
+def publisher_options(topic: str, *, drop: bool | None = None) -> tuple[dict[str, Any], int]:
+    """Zenoh publisher options for ``topic`` from the topic table, and the
+    number of samples to keep for late joiners (0: a plain publisher).
+    ``drop`` overrides the table's congestion control."""
+    delivery = topics.delivery_for(topic)
+    if drop is None:
+        drop = delivery.drop
+    opts: dict[str, Any] = dict(
+        congestion_control=zenoh.CongestionControl.DROP if drop else zenoh.CongestionControl.BLOCK,
+        reliability=zenoh.Reliability.RELIABLE,
+        express=delivery.express,
+    )
+    return opts, delivery.history
+
+
+def has_subscribers(pub: Any) -> bool:
+    """Whether a subscriber matches a plain Zenoh publisher now. (zenoh 1.10's
+    stubs type ``matching_status`` as bool; it is a MatchingStatus object.)"""
+    return bool(pub.matching_status.matching)
 
 
 class TypedPublisher(Generic[M]):
     """Publishes one message type on one key; fills seq and stamp_ns."""
 
     def __init__(self, bus: "Bus", topic: str, msg_type: type[M], *, drop: bool | None = None) -> None:
+        """Delivery (history, express, drop) comes from the topic table
+        (schemas.topics); ``drop`` overrides its congestion control."""
         self.topic = topic
         self.key = bus.key(topic)
         self.msg_type = msg_type
         self._bus = bus
         self._seq = 0
         self._lock = threading.Lock()
-        if drop is None:
-            drop = topic in DROP_TOPICS
-        opts = dict(
-            congestion_control=zenoh.CongestionControl.DROP if drop else zenoh.CongestionControl.BLOCK,
-            reliability=zenoh.Reliability.RELIABLE,
-            express=topic in EXPRESS_TOPICS,
-        )
-        self._probe = None
-        if topic in STATE_TOPICS:
+        opts, history = publisher_options(topic, drop=drop)
+        self._pub: zenoh.Publisher | zenoh.ext.AdvancedPublisher
+        self._probe: zenoh.Publisher | None = None
+        if history:
+            # zenoh-ext advanced publisher: a subscriber that joins late (a
+            # restarted solver, a reopened UI) receives the cached samples
             self._pub = zenoh.ext.declare_advanced_publisher(
-                bus.zenoh, self.key, cache=zenoh.ext.CacheConfig(max_samples=STATE_HISTORY.get(topic, 1)), publisher_detection=True, **opts)
+                bus.zenoh, self.key, cache=zenoh.ext.CacheConfig(max_samples=history),
+                publisher_detection=True, **opts)
             # AdvancedPublisher has no matching status: a plain publisher that
             # never sends answers "does anyone subscribe here?"
             self._probe = bus.zenoh.declare_publisher(self.key)
@@ -238,7 +235,7 @@ class TypedPublisher(Generic[M]):
 
     def matching(self) -> bool:
         """Whether any subscriber matches this key now."""
-        return bool((self._probe or self._pub).matching_status.matching)
+        return has_subscribers(self._probe if self._probe is not None else self._pub)
 
     def wait_matching(self, timeout: float) -> bool:
         deadline = time.monotonic() + timeout
@@ -281,8 +278,8 @@ class Bus:
 
     # -- publish / subscribe
     def publisher(self, topic: str, msg_type: type[M], *, drop: bool | None = None) -> TypedPublisher[M]:
-        """A typed publisher on ``couture/<session>/<topic>``; congestion control
-        BLOCK except for drape/predicted (DROP); reliable."""
+        """A typed, reliable publisher on ``couture/<session>/<topic>``, delivered
+        as the topic table says (schemas.topics: history, express, drop)."""
         p = TypedPublisher(self, topic, msg_type, drop=drop)
         self._closeables.append(p)
         return p
@@ -307,13 +304,13 @@ class Bus:
         Callbacks run on a Zenoh thread: hand long work to a worker thread.
         """
         if expected is None:
-            expected = type_for_topic(topic.rstrip("*").rstrip("/") + "/x") if topic.endswith("*") else type_for_topic(topic)
+            expected = topics.type_for_keyexpr(topic)
 
         def on_sample(sample: zenoh.Sample) -> None:
             key = str(sample.key_expr)
             rel = self.topic_of(key)
             try:
-                want = expected or type_for_topic(rel)
+                want = expected or topics.type_for_topic(rel)
                 msg = decode(sample.payload.to_bytes(), want)
             except SchemaError as e:
                 self.stats.count("bad_messages")
@@ -331,13 +328,14 @@ class Bus:
                 self.stats.error(f"callback for {key} raised {type(e).__name__}: {e}")
                 log.error("callback for %s raised:\n%s", key, traceback.format_exc())
 
+        n_history = topics.history_for_subscription(topic)
         if history is None:
-            history = any(topic_matches_state(topic, t) for t in STATE_TOPICS)
-        if history:  # late joiners get each state topic's last sample
+            history = n_history > 0
+        sub: zenoh.Subscriber | zenoh.ext.AdvancedSubscriber
+        if history:  # late joiners get the cached samples of the topics that keep some
             sub = zenoh.ext.declare_advanced_subscriber(
                 self.zenoh, self.key(topic), on_sample,
-                history=zenoh.ext.HistoryConfig(detect_late_publishers=True,
-                                                max_samples=max(STATE_HISTORY.get(topic, 1), 1)))
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=max(n_history, 1)))
         else:
             sub = self.zenoh.declare_subscriber(self.key(topic), on_sample)
         self._closeables.append(sub)
@@ -476,10 +474,11 @@ class Bus:
         for reply in replies:
             if reply.ok is not None:
                 try:
-                    return decode(reply.ok.payload.to_bytes(), SolveResultMsg)  # type: ignore[return-value]
+                    return decode(reply.ok.payload.to_bytes(), SolveResultMsg)
                 except SchemaError as e:
                     raise RuntimeError(f"solver on {reply.ok.key_expr} sent an invalid result: {e}") from None
-            raise RuntimeError(f"solver on {key} failed: {reply.err.payload.to_bytes().decode(errors='replace')}")
+            why = reply.err.payload.to_bytes().decode(errors="replace") if reply.err is not None else "empty reply"
+            raise RuntimeError(f"solver on {key} failed: {why}")
         live = self.live_nodes(timeout=0.5)
         raise TimeoutError(f"no solver answered on {key} within {timeout:g} s (live nodes: {live or 'none'})")
 

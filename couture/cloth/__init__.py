@@ -27,7 +27,6 @@ from couture.cloth.model import (  # noqa: E402
     Scene,
     lame_parameters,
 )
-
 from schemas.design import Fabric  # noqa: E402  (re-exported: the material a ClothModel reads)
 
 __all__ = ["BEND_CONSTANT", "GRAVITY", "Body", "ClothModel", "Fabric", "Scene", "lame_parameters"]

@@ -35,13 +35,13 @@ from functools import lru_cache
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from schemas.design import Design, Stroke
 from couture.pattern.drafted import DraftedPattern, Panel, SeamSpec, Segment
 from couture.pattern.errors import PatternError
 from couture.pattern.geometry import Curve
 from couture.pattern.options import resolve
 from couture.pattern.placement import fit_ring, place
 from couture.pattern.slopers import SLOPERS, SloperDraft
+from schemas.design import Design, Stroke
 
 SPACING = 0.01
 """[m] target polyline spacing at default size"""
@@ -235,13 +235,13 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
             el = f"cv:{st.panel}:{st.params['segment']}:{i}"
             if not isinstance(pt, (list, tuple)) or len(pt) != 2:
                 raise PatternError(el, f"control point {pt!r} is not [s, dn]")
-            s = _num(el, {"s": pt[0]}, "s", 0.0, 1.0, True, True)
-            d = _num(el, {"dn": pt[1]}, "dn", -2.0, 2.0)
-            if s <= s_prev + 1e-6:
-                raise PatternError(el, f"s = {s:g} must be greater than the previous control point's {s_prev:g}")
-            ss.append(s)
-            dn.append(d)
-            s_prev = s
+            s_i = _num(el, {"s": pt[0]}, "s", 0.0, 1.0, True, True)
+            dn_i = _num(el, {"dn": pt[1]}, "dn", -2.0, 2.0)
+            if s_i <= s_prev + 1e-6:
+                raise PatternError(el, f"s = {s_i:g} must be greater than the previous control point's {s_prev:g}")
+            ss.append(s_i)
+            dn.append(dn_i)
+            s_prev = s_i
         ss.append(1.0)
         dn.append(0.0)
         seg.disp = CubicSpline(ss, dn, bc_type="clamped")
@@ -266,7 +266,7 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
                 raise PatternError(st.id, f"no panel named {st.panel!r}")
             ctx.darts[st.id] = DartSpec(st.id, st.panel, "hole", dict(st.params))
 
-    sewn = {}
+    sewn: dict[tuple[str | None, str | None], list[str]] = {}
     for a_p, a_s, b_p, b_s in sloper.seams:
         sewn.setdefault((a_p, a_s), []).append("sloper seam")
         sewn.setdefault((b_p, b_s), []).append("sloper seam")
@@ -278,7 +278,9 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
     panels: list[Panel] = []
     dart_seams: list[tuple[SeamSpec, str]] = []
     for pd in sloper.panels:
-        pts_all, segments, holes = [], [], []
+        pts_all: list[np.ndarray] = []
+        segments: list[Segment] = []
+        holes: list[np.ndarray] = []
         for sg in pd.segments:
             seg = ctx.segs[(pd.name, sg.name)]
             bds = sorted((d for d in ctx.darts.values() if d.kind == "boundary" and d.panel == pd.name
@@ -305,7 +307,7 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
                 if order != sorted(range(len(spans)), key=lambda i: spans[i][3].id):
                     pass  # order by position; ids only fix the count layout, which is symmetric
                 spans = [spans[i] for i in order]
-                for (ul0, ur0, _, d0), (ul1, _, _, d1) in zip(spans, spans[1:]):
+                for (_, ur0, _, d0), (ul1, _, _, d1) in zip(spans, spans[1:], strict=False):
                     if ul1 <= ur0:
                         raise PatternError(d1.id, f"dart overlaps dart {d0.id!r} on {pd.name}:{sg.name}")
                 npiece = max(2, math.ceil(seg.n / (len(spans) + 1)))
@@ -321,7 +323,6 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
                     leg_l = A + t * (apex - A)
                     leg_r = apex + t * (B - apex)
                     i0 = start + sum(len(p) for p in pieces)
-                    k = sum(len(p) for p in pts_all) - start  # noqa: F841 (kept for clarity)
                     pieces.append(leg_l)
                     pieces.append(leg_r)
                     segments.append(Segment(f"dart:{d.id}:left", i0, i0 + DART_LEG_SAMPLES))
@@ -344,8 +345,8 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
                 w = _num(d.id, d.params, "width", 0.0, 1.0, True)
                 ln = _num(d.id, d.params, "length", 0.0, 2.0, True)
                 corners = [c + 0.5 * ln * a, c + 0.5 * w * t, c - 0.5 * ln * a, c - 0.5 * w * t]
-                s = np.linspace(0, 1, DART_LEG_SAMPLES, endpoint=False)[:, None]
-                hole = np.vstack([corners[i] + s * (corners[(i + 1) % 4] - corners[i]) for i in range(4)])
+                u = np.linspace(0, 1, DART_LEG_SAMPLES, endpoint=False)[:, None]
+                hole = np.vstack([corners[i] + u * (corners[(i + 1) % 4] - corners[i]) for i in range(4)])
                 hi = len(holes)
                 M2 = 2 * DART_LEG_SAMPLES
                 segments.append(Segment(f"dart:{d.id}:right", 0, M2, hole=hi))
@@ -361,10 +362,10 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
     # symmetry: mirror half panels
     for st in design.strokes:
         if st.kind == "symmetry":
-            i = next((j for j, p in enumerate(panels) if p.name == st.panel), None)
-            if i is None:
+            found = next((j for j, p in enumerate(panels) if p.name == st.panel), None)
+            if found is None:
                 raise PatternError(st.id, f"no panel named {st.panel!r}")
-            panels[i] = _mirror(panels[i], st)
+            panels[found] = _mirror(panels[found], st)
 
     # seams
     seams: list[SeamSpec] = []
@@ -391,7 +392,7 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
         for name, pl in fit_ring(ring, by_name).items():
             by_name[name].placement = pl
     pattern = DraftedPattern(panels, seams)
-    for i, (sp, owner) in enumerate(zip(seams, owners)):
+    for i, (sp, owner) in enumerate(zip(seams, owners, strict=True)):
         ctx.seam_owner[i] = owner
         _orient(pattern, sp, owner)
     return pattern, ctx

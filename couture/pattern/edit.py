@@ -34,10 +34,10 @@ import copy
 
 import numpy as np
 
-from schemas.design import Design, Stroke
-from couture.pattern.drafted import DraftedPattern, PanelJacobian
 from couture.pattern.draft import DraftContext, draft_with_context, interior_frame, sloper_of
+from couture.pattern.drafted import DraftedPattern, PanelJacobian
 from couture.pattern.errors import PatternError
+from schemas.design import Design, Stroke
 
 FD_STEP = 1e-6
 
@@ -78,10 +78,10 @@ def _dofs(design: Design, element: str, ctx: DraftContext):
 
         return set_param, np.array([ctx.params[name]]), np.array([[1.0, 0.0]])
     if kind == "cv" and len(parts) == 4:
-        panel, segment, i = parts[1], parts[2], parts[3]
+        panel, segment, index = parts[1], parts[2], parts[3]
         st = _curve_stroke(design, panel, segment, element)
         try:
-            i = int(i)
+            i = int(index)
             s, dn = st.params["points"][i]
         except (ValueError, IndexError, TypeError):
             raise PatternError(element, "no such control point") from None
@@ -109,14 +109,14 @@ def _dofs(design: Design, element: str, ctx: DraftContext):
         prm, dkind = _dart_params(design, ctx, did, element)
         panel = ctx.darts[did].panel
         if dkind == "boundary":
-            seg = ctx.segs.get((panel, prm.get("segment")))
-            if seg is None:
+            on = ctx.segs.get((panel, str(prm.get("segment"))))
+            if on is None:
                 raise PatternError(element, f"segment {prm.get('segment')!r} not on panel {panel!r}")
             pos = float(prm["position"])
-            T = seg.tangent(np.array([pos]))[0]
+            T = on.tangent(np.array([pos]))[0]
             t = T / np.linalg.norm(T)
             a = np.array([-t[1], t[0]])
-            L = seg.length()
+            L = on.length()
             table = {"position": (["position"], np.array([t / L])),
                      "width": (["width"], np.array([2 * t])),
                      "length": (["length"], np.array([a]))}
@@ -133,10 +133,10 @@ def _dofs(design: Design, element: str, ctx: DraftContext):
 
         def set_dart(d, q):
             d = copy.deepcopy(d)
-            new = {**base, **{k: float(v) for k, v in zip(keys, q)}}
+            new = {**base, **{k: float(v) for k, v in zip(keys, q, strict=True)}}
             for x in d.strokes:
                 if x.id == did:
-                    x.params = {**x.params, **{k: float(v) for k, v in zip(keys, q)}}
+                    x.params = {**x.params, **{k: float(v) for k, v in zip(keys, q, strict=True)}}
                     return d
             # a built-in sloper dart: add an override stroke with the same id
             d.strokes = list(d.strokes) + [Stroke(id=did, kind="dart", panel=panel,

@@ -79,7 +79,7 @@ def self_intersections(P: np.ndarray, closed: bool = True, chunk: int = 512) -> 
     if not closed:
         A = P[:-1]
     k = len(A)
-    out = []
+    out: list[tuple[int, int]] = []
     scale = max(float(np.ptp(P, axis=0).max()), 1e-12)
     eps = 1e-12 * scale * scale
 
@@ -112,7 +112,7 @@ def self_intersections(P: np.ndarray, closed: bool = True, chunk: int = 512) -> 
         gap = np.abs(ii - jj)
         adj = (gap <= 1) | (closed & (gap == k - 1))
         keep = (~adj) & (ii < jj)
-        out.extend(zip(ii[keep].tolist(), jj[keep].tolist()))
+        out.extend(zip(ii[keep].tolist(), jj[keep].tolist(), strict=True))
     return out
 
 

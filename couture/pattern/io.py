@@ -4,13 +4,14 @@ drafted pattern: DXF (AAMA/ASTM style), SVG and PDF at true scale."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import msgspec
 import numpy as np
 
-from schemas.design import DESIGN_SCHEMA, Design
 from couture.pattern.drafted import DraftedPattern, Panel
 from couture.pattern.errors import PatternError
+from schemas.design import DESIGN_SCHEMA, Design
 
 
 class DesignFile(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
@@ -131,19 +132,20 @@ def import_dxf(path: str | Path) -> dict[str, dict]:
     """Pieces of an AAMA DXF: name -> {'outline': sew line (k, 2) [m], 'cut': (k, 2) [m],
     'holes': [...]} read from the blocks' layers 14, 1 and 11."""
     import ezdxf
+    from ezdxf.entities import Polyline
 
     doc = ezdxf.readfile(str(path))
     unit = {4: 1e-3, 1: 0.0254, 6: 1.0, 5: 1e-2}.get(doc.header.get("$INSUNITS", 4), 1e-3)
     out = {}
     for ref in doc.modelspace().query("INSERT"):
         blk = doc.blocks[ref.dxf.name]
-        piece = {"outline": None, "cut": None, "holes": []}
+        piece: dict[str, Any] = {"outline": None, "cut": None, "holes": []}
         name = ref.dxf.name
         for e in blk:
             if e.dxftype() == "TEXT" and e.dxf.text.startswith("Piece Name:"):
                 name = e.dxf.text.split(":", 1)[1].strip()
-            elif e.dxftype() == "POLYLINE":
-                P = np.array([(v.dxf.location.x, v.dxf.location.y) for v in e.vertices], float) * unit
+            elif isinstance(e, Polyline):
+                P = np.array([(v.dxf.location.x, v.dxf.location.y) for v in e.vertices], np.float64) * unit
                 if e.dxf.layer == AAMA_SEW:
                     piece["outline"] = P
                 elif e.dxf.layer == AAMA_BOUNDARY:

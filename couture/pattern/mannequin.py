@@ -99,12 +99,12 @@ def body_radius_max(y0: float, y1: float) -> float:
 
 def measure_mannequin(path: str | None = None) -> dict[str, float]:
     """Re-measure the girths from the mesh (slow-ish, ~1 s; tests use it)."""
+    from pathlib import Path
+
     import trimesh
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import ConvexHull
-
-    from pathlib import Path
 
     if path is None:
         path = str(Path(__file__).resolve().parents[2] / MANNEQUIN_PATH)

@@ -66,6 +66,7 @@ def _upsample(radius: np.ndarray, factor: int = _UPSAMPLE) -> np.ndarray:
 
 def _wrap_row(pl: Placement, row: int, x: np.ndarray) -> np.ndarray:
     """World positions (m, 3) of material x (m,) on row ``row`` of a wrap placement."""
+    assert pl.rows_radius is not None and pl.rows_x0 is not None and pl.rows_axial is not None, "not a wrap placement"
     a, f, b = frame(pl)
     P, s = _curve(pl.rows_radius[row])
     u = np.mod(x - pl.rows_x0[row], s[-1])
@@ -94,6 +95,7 @@ def place(panel: Panel, points2d: np.ndarray) -> np.ndarray:
         return pl.origin + P[:, :1] * np.asarray(pl.u) + P[:, 1:2] * np.asarray(pl.v)
     if pl.kind == "wrap":
         ys = pl.rows_y
+        assert ys is not None, "a wrap placement has rows"
         j = np.clip(np.searchsorted(ys, P[:, 1], side="right") - 1, 0, len(ys) - 2)
         w = np.clip((P[:, 1] - ys[j]) / (ys[j + 1] - ys[j]), 0.0, 1.0)[:, None]
         out = np.empty((len(P), 3))
@@ -155,7 +157,7 @@ def fit_ring(ring, panels: dict[str, Panel]) -> dict[str, Placement]:
     ys = np.linspace(y_lo, y_hi, n_rows)
     ext = [_extents(o, ys) for o in outlines]
     spans = [((o[:, 1].min() <= ys) & (ys <= o[:, 1].max())) for o in outlines]
-    widths = np.array([np.where(sp, hi - lo, 0.0) for (lo, hi), sp in zip(ext, spans)])  # (panels, rows)
+    widths = np.array([np.where(sp, hi - lo, 0.0) for (lo, hi), sp in zip(ext, spans, strict=True)])  # (panels, rows)
     girth = widths.sum(axis=0)
 
     origin = np.asarray(ring.origin, float)
@@ -179,6 +181,8 @@ def fit_ring(ring, panels: dict[str, Panel]) -> dict[str, Placement]:
         if ring.body_radius is not None:
             circle = np.repeat(np.asarray(ring.body_radius(axial), float)[:, None], K, axis=1)
         if sec is None:
+            if circle is None:
+                raise ValueError("a ring needs a body section or a body_radius")
             return circle
         R = sec.radii(axial + t_off)
         # theta_ring = theta_sec - phi
@@ -211,7 +215,7 @@ def fit_ring(ring, panels: dict[str, Panel]) -> dict[str, Placement]:
         perim = s[-1]
         spare = max(perim - girth[i], 0.0)
 
-        def arc_at(theta):
+        def arc_at(theta, s=s):
             return float(np.interp(np.mod(theta, 2 * np.pi), 2 * np.pi * np.arange(len(s)) / (len(s) - 1), s))
 
         w_i = widths[:, i]

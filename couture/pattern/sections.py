@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -121,7 +122,7 @@ def measure_sections(path: str | None = None) -> dict[str, Section]:
 
     if path is None:
         path = str(Path(__file__).resolve().parents[2] / M.MANNEQUIN_PATH)
-    V = np.asarray(trimesh.load(path, process=False).vertices)
+    V = np.asarray(trimesh.load_mesh(path, process=False).vertices)
     split = _arm_split(V[:, 1])
     parts = {
         "torso": np.abs(V[:, 0]) < split,
@@ -149,7 +150,7 @@ def measure_sections(path: str | None = None) -> dict[str, Section]:
 
 
 def save_sections(sections: dict[str, Section], path: Path = SECTIONS_PATH) -> None:
-    arrays = {}
+    arrays: dict[str, Any] = {}
     for name, s in sections.items():
         arrays[f"{name}.origin"] = s.origin
         arrays[f"{name}.axis"] = s.axis

@@ -408,9 +408,9 @@ def _leg_body_radius(ym):
 
 
 SLOPERS: dict[str, SloperDef] = {
-    "skirt": SloperDef("skirt", SKIRT_OPTIONS, draft_skirt, draft_skirt.__doc__),
-    "dress": SloperDef("dress", DRESS_OPTIONS, draft_dress, draft_dress.__doc__),
-    "shirt": SloperDef("shirt", SHIRT_OPTIONS, draft_shirt, draft_shirt.__doc__),
-    "trousers": SloperDef("trousers", TROUSERS_OPTIONS, draft_trousers, draft_trousers.__doc__),
+    "skirt": SloperDef("skirt", SKIRT_OPTIONS, draft_skirt, draft_skirt.__doc__ or ""),
+    "dress": SloperDef("dress", DRESS_OPTIONS, draft_dress, draft_dress.__doc__ or ""),
+    "shirt": SloperDef("shirt", SHIRT_OPTIONS, draft_shirt, draft_shirt.__doc__ or ""),
+    "trousers": SloperDef("trousers", TROUSERS_OPTIONS, draft_trousers, draft_trousers.__doc__ or ""),
 }
 """sloper kind -> its option table and drafting function"""

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from schemas.design import Design
 from couture.pattern.draft import draft_with_context, find_segment, segment_points
 from couture.pattern.drafted import DraftedPattern
 from couture.pattern.errors import PatternError
 from couture.pattern.geometry import point_in_polygon, polyline_length, segments_cross, self_intersections, signed_area
+from schemas.design import Design
 
 GATHER_RATIO_MAX = 3.0
 """longest / shortest seam segment length allowed (gathers and pleats)"""

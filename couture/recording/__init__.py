@@ -7,10 +7,10 @@
     compare: compare(golden, actual, rtol=..., atol=...) -> CompareReport
 """
 
-from couture.recording.compare import OUTPUT_TOPICS, CompareReport, TopicReport, compare
+from couture.recording.compare import CompareReport, TopicReport, compare
 from couture.recording.mcapio import Recorded, SessionWriter, read_session, recover, split_key, topic_matches
 
 __all__ = [
-    "OUTPUT_TOPICS", "CompareReport", "TopicReport", "compare", "Recorded", "SessionWriter",
+    "CompareReport", "TopicReport", "compare", "Recorded", "SessionWriter",
     "read_session", "recover", "split_key", "topic_matches",
 ]

@@ -1,6 +1,7 @@
 """Compare the outputs of two recordings (golden vs actual).
 
-Outputs are ``drape/*``, ``mesh/*`` and ``solve/result/*``. A message is
+Outputs are the topics the table in schemas.topics marks as compared
+(meshes, drapes, solve results). A message is
 matched to its counterpart by (topic, generation, mesh_generation,
 request_id, edit_id); when a key occurs several times (progress
 publications), the last one counts. Float arrays and float scalars pass
@@ -20,10 +21,10 @@ import msgspec
 import numpy as np
 
 from couture.recording.mcapio import read_session
+from schemas import topics as topic_table
 from schemas.arrays import FLOAT_DTYPES, Array
 from schemas.messages import Message, SchemaError, decode
 
-OUTPUT_TOPICS = ["drape/*", "mesh/*", "solve/result/*"]
 IGNORED_FIELDS = {"seq", "stamp_ns", "wall_time_s"}
 
 
@@ -109,8 +110,9 @@ def _outputs(path: str, topics: list[str]) -> tuple[dict[str, Message], dict[str
 
 def compare(golden: str, actual: str, *, rtol: float = 1e-5, atol: float = 1e-8,
             topics: list[str] | None = None) -> CompareReport:
-    """Compare output messages of two recordings (see module doc)."""
-    topics = topics or OUTPUT_TOPICS
+    """Compare output messages of two recordings (see module doc); ``topics``
+    defaults to the compared topics of the table."""
+    topics = topics or topic_table.compared_topics()
     rep = CompareReport(golden=golden, actual=actual, rtol=rtol, atol=atol)
     g, g_order, g_bad = _outputs(golden, topics)
     a, _, a_bad = _outputs(actual, topics)
@@ -189,7 +191,7 @@ def _compare_values(gv: Any, av: Any, path: str, rtol: float, atol: float, tr: T
                 devs.append(f"{path}: {av!r} vs golden {gv!r}")
             return
     if isinstance(gv, list) and isinstance(av, list) and len(gv) == len(av):
-        for i, (x, y) in enumerate(zip(gv, av)):
+        for i, (x, y) in enumerate(zip(gv, av, strict=True)):
             _compare_values(x, y, f"{path}[{i}]", rtol, atol, tr, key, devs)
         return
     if isinstance(gv, dict) and isinstance(av, dict) and gv.keys() == av.keys():

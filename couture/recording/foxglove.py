@@ -120,7 +120,7 @@ def load_obj(path: str | Path = MANNEQUIN_OBJ) -> tuple[np.ndarray, np.ndarray]:
     """Vertices [m] (n, 3) and triangles (m, 3) of an OBJ (quads split)."""
     import trimesh
 
-    m = trimesh.load(str(path), process=False, force="mesh")
+    m = trimesh.load_mesh(str(path), process=False)
     return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
 
 
@@ -274,16 +274,14 @@ def export_foxglove(src: str | Path, dst: str | Path, *, strain_max: float = STR
 
     with open(src, "rb") as fin, open(dst, "wb") as fout:
         reader = StreamReader(fin, record_size_limit=1 << 31)
-        w: Writer | None = None
-        fox: _FoxgloveChannels | None = None
+        opened: tuple[Writer, _FoxgloveChannels] | None = None
 
-        def start(profile: str) -> None:
-            nonlocal w, fox
+        def start(profile: str) -> tuple[Writer, _FoxgloveChannels]:
             w = Writer(fout, compression=CompressionType.ZSTD)
             w.start(profile=profile, library="couture export-foxglove")
-            fox = _FoxgloveChannels(w, stats)
+            return w, _FoxgloveChannels(w, stats)
 
-        def first_message(t: int) -> None:
+        def first_message(fox: _FoxgloveChannels, t: int) -> None:
             fox.write("/foxglove/tf", frame_transform(t), t, t)
             if body_vt is not None:
                 prim = triangle_list(body_vt[0], body_vt[1], color=BODY_RGBA)
@@ -300,10 +298,11 @@ def export_foxglove(src: str | Path, dst: str | Path, *, strain_max: float = STR
                 log.warning("%s: stopped reading at a damaged or truncated record (%s)", src, e)
                 break
             if isinstance(rec, Header):
-                start(rec.profile)
+                opened = start(rec.profile)
                 continue
-            if w is None:
-                start("")
+            if opened is None:
+                opened = start("")
+            w, fox = opened
             if isinstance(rec, Schema):
                 if rec.id in schema_ids:  # the summary section repeats schemas and channels
                     continue
@@ -321,7 +320,7 @@ def export_foxglove(src: str | Path, dst: str | Path, *, strain_max: float = STR
                     continue
                 if not started:
                     started = True
-                    first_message(rec.log_time)
+                    first_message(fox, rec.log_time)
                 w.add_message(channel_id=channel_ids[rec.channel_id], log_time=rec.log_time, data=rec.data,
                               publish_time=rec.publish_time, sequence=rec.sequence)
                 stats.copied += 1
@@ -332,10 +331,9 @@ def export_foxglove(src: str | Path, dst: str | Path, *, strain_max: float = STR
                                  media_type=rec.media_type, data=rec.data)
             elif isinstance(rec, Metadata):
                 w.add_metadata(rec.name, dict(rec.metadata))
-        if w is None:
-            start("")
+        w, fox = opened if opened is not None else start("")
         if not started and body_vt is not None:
-            first_message(0)
+            first_message(fox, 0)
         w.add_metadata("couture/export-foxglove", {
             "source": str(src), "strain_scale": f"max principal Green strain, {scale.lo:g}..{scale.hi:g}, "
                                                 f"{scale.n_bands} bands, viridis",

@@ -114,6 +114,7 @@ def _wait_recorder(sup: supervisor.Supervisor, timeout: float = 30.0) -> None:
     matching status on ``pattern`` is already satisfied by the remesher. A
     probe key that only the recorder's ``couture/<session>/**`` matches tells."""
     from couture.bus import open_session
+    from couture.bus.session import has_subscribers
     from couture.client import Client
 
     with Client(bus=sup.child_bus) as c:
@@ -121,7 +122,7 @@ def _wait_recorder(sup: supervisor.Supervisor, timeout: float = 30.0) -> None:
     with open_session(sup.child_bus, name="golden-probe") as bus:
         probe = bus.zenoh.declare_publisher(bus.key(f"probe/{uuid.uuid4().hex[:8]}"))
         deadline = time.monotonic() + timeout
-        while not probe.matching_status.matching:
+        while not has_subscribers(probe):
             if time.monotonic() > deadline:
                 raise TimeoutError("the recorder never subscribed")
             time.sleep(0.02)

@@ -1,4 +1,8 @@
-"""The recorder node: every ``couture/**`` message into an MCAP file.
+"""The recorder node: every message on a recorded topic into an MCAP file.
+
+It subscribes to ``couture/<session>/**`` (so any probe on the session sees
+it) and writes the samples whose key the table in schemas.topics marks as
+recorded; other keys are counted as ``not_recorded``.
 
 Zenoh callbacks only enqueue (key, payload, receive time); the main thread
 writes, closes a chunk every ``flush_interval_s`` and finalizes the file on
@@ -14,7 +18,8 @@ import time
 from dataclasses import dataclass, field
 
 from couture.bus import BusConfig, Node
-from couture.recording.mcapio import SessionWriter
+from couture.recording.mcapio import SessionWriter, split_key
+from schemas import topics as topic_table
 
 log = logging.getLogger("couture.recorder")
 
@@ -43,6 +48,11 @@ class RecordStats:
     seconds: float = 0.0
 
 
+def records(key: str) -> bool:
+    """Whether the recorder writes a sample on this absolute key (couture/<session>/<topic>)."""
+    return topic_table.is_recorded(split_key(key)[1])
+
+
 def main(config: RecordConfig) -> RecordStats:
     keys = config.keyexprs or (["couture/**"] if config.all_sessions else [f"couture/{config.bus.session}/**"])
     inbox: queue.SimpleQueue = queue.SimpleQueue()
@@ -54,8 +64,14 @@ def main(config: RecordConfig) -> RecordStats:
         # live only once subscribed: whoever waits for the recorder's liveliness
         # may publish right away and must not be missed
         with Node(config.name, config.bus, kind="recorder", announce=False) as node:
+            def on_sample(key: str, data: bytes, t: int) -> None:
+                if records(key):
+                    inbox.put((key, data, t))
+                else:
+                    node.count("not_recorded")
+
             for k in keys:
-                node.bus.subscribe_raw(k, lambda key, data, t: inbox.put((key, data, t)))
+                node.bus.subscribe_raw(k, on_sample)
             node.announce()
             last_report = time.monotonic()
             last_msgs, last_bytes = 0, 0

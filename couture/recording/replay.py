@@ -1,4 +1,5 @@
-"""Replay recorded inputs (by default ``pattern`` and ``edit``) onto a live bus.
+"""Replay recorded inputs onto a live bus: by default the topics the table in
+schemas.topics marks as replayed (``pattern`` and ``edit``).
 
 Payloads go out byte for byte (same generation, seq and stamps as recorded),
 re-keyed into the target session. ``rate`` = 1 keeps the original timing,
@@ -18,18 +19,18 @@ from dataclasses import dataclass, field
 
 from couture.bus import BusConfig, StopFlag, open_session
 from couture.recording.mcapio import read_session
-from schemas.messages import DrapeMsg, Message, decode, type_for_topic
+from schemas import topics as topic_table
+from schemas.messages import DrapeMsg, Message, decode
 
 log = logging.getLogger("couture.replay")
-
-DEFAULT_TOPICS = ["pattern", "edit"]
 
 
 @dataclass
 class ReplayConfig:
     path: str
     bus: BusConfig = field(default_factory=BusConfig)
-    topics: list[str] = field(default_factory=lambda: list(DEFAULT_TOPICS))
+    topics: list[str] = field(default_factory=topic_table.replayed_topics)
+    """relative topics to re-publish; default: the inputs of the topic table"""
     rate: float = 1.0
     loop: bool = False
     wait_nodes: list[str] = field(default_factory=list)
@@ -58,14 +59,14 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
         pubs = {}
         for m in msgs:
             if m.topic not in pubs:
-                cls = type_for_topic(m.topic)
+                cls = topic_table.type_for_topic(m.topic)
                 pubs[m.topic] = bus.publisher(m.topic, cls or Message)
         if config.wait_nodes:
             missing = bus.wait_nodes(config.wait_nodes, config.wait_timeout_s)
             if missing:
                 raise TimeoutError(f"replay: nodes {missing} not live on session {config.bus.session} after {config.wait_timeout_s:g} s")
         deadline = time.monotonic() + config.wait_timeout_s
-        for topic, pub in pubs.items():
+        for pub in pubs.values():
             if not pub.wait_matching(max(0.0, deadline - time.monotonic())):
                 text = f"replay: no subscriber on {pub.key} after {config.wait_timeout_s:g} s"
                 if config.require_subscribers:

@@ -10,13 +10,14 @@ import numpy as np
 from couture.pattern.drafted import DraftedPattern, Panel, SeamSpec, Segment
 
 
-def polyline(corners: np.ndarray, per_edge) -> tuple[np.ndarray, list[int]]:
+def polyline(corners: np.ndarray, per_edge: int | list[int]) -> tuple[np.ndarray, list[int]]:
     """Closed polyline through ``corners`` with ``per_edge`` points per edge
     (int or one per edge); returns (points (k, 2), index of each corner)."""
     corners = np.asarray(corners, np.float64)
     c = len(corners)
-    counts = [per_edge] * c if np.isscalar(per_edge) else list(per_edge)
-    pts, idx = [], []
+    counts = [int(per_edge)] * c if isinstance(per_edge, (int, np.integer)) else list(per_edge)
+    pts: list[np.ndarray] = []
+    idx: list[int] = []
     for i in range(c):
         idx.append(sum(len(p) for p in pts))
         t = np.arange(counts[i])[:, None] / counts[i]

@@ -235,7 +235,7 @@ def _segment_ends(panel: Panel, loop: int) -> np.ndarray:
 def _triangulate_panel(panel: Panel, h: float, area_bound: float, hole_seeds: list[np.ndarray]):
     """Mesh one panel. Returns (V, tris, per-loop (chain_vertex, edge, next, t) in output indices)."""
     loops = [np.asarray(panel.outline, np.float64)] + [np.asarray(hh, np.float64) for hh in panel.holes]
-    pts, segs, seg_loop, seg_edge, seg_next, seg_t0 = [], [], [], [], [], []
+    pts, segs, seg_loop_parts, seg_edge_parts, seg_next_parts, seg_t0_parts = [], [], [], [], [], []
     off = 0
     for li, P in enumerate(loops):
         kept = _kept_vertices(P, h, _segment_ends(panel, li))
@@ -243,18 +243,18 @@ def _triangulate_panel(panel: Panel, h: float, area_bound: float, hole_seeds: li
         c = len(q)
         pts.append(q)
         segs.append(off + np.column_stack([np.arange(c), (np.arange(c) + 1) % c]))
-        seg_loop.append(np.full(c, li))
-        seg_edge.append(e)
-        seg_next.append(nx)
-        seg_t0.append(t)
+        seg_loop_parts.append(np.full(c, li))
+        seg_edge_parts.append(e)
+        seg_next_parts.append(nx)
+        seg_t0_parts.append(t)
         off += c
     V_in = np.concatenate(pts)
     n_in = len(V_in)
     S = np.concatenate(segs)
-    seg_loop = np.concatenate(seg_loop)
-    seg_edge = np.concatenate(seg_edge)
-    seg_next = np.concatenate(seg_next)
-    seg_t0 = np.concatenate(seg_t0)
+    seg_loop = np.concatenate(seg_loop_parts)
+    seg_edge = np.concatenate(seg_edge_parts)
+    seg_next = np.concatenate(seg_next_parts)
+    seg_t0 = np.concatenate(seg_t0_parts)
     data = {
         "vertices": V_in,
         "segments": S,
@@ -279,7 +279,7 @@ def _triangulate_panel(panel: Panel, h: float, area_bound: float, hole_seeds: li
         verts = np.concatenate([osegs[sel, 0], osegs[sel, 1]])
         iseg = np.concatenate([omark[sel], omark[sel]])
         key = {}
-        for v, s in zip(verts.tolist(), iseg.tolist()):
+        for v, s in zip(verts.tolist(), iseg.tolist(), strict=True):
             if v < n_in:
                 # an input vertex: it starts input segment v (segments are v -> v+1 within a loop)
                 s = v
@@ -377,7 +377,7 @@ def mesh_pattern(
         parts = _mesh_panels(drafted, h, area_bound, hole_seeds)
     t_tri = time.perf_counter()
 
-    Xs, Ts, tri_panel, loops, panel_vertices, vertex_panel = [], [], [], [], [], []
+    Xs, Ts, tri_panel_parts, loops, panel_vertices, vertex_panel_parts = [], [], [], [], [], []
     off = 0
     for pi, (V, T, lo) in enumerate(parts):
         used = np.zeros(len(V), bool)
@@ -388,9 +388,9 @@ def mesh_pattern(
         Tp = remap[T]
         Xs.append(Xp)
         Ts.append(Tp)
-        tri_panel.append(np.full(len(T), pi, np.int32))
+        tri_panel_parts.append(np.full(len(T), pi, np.int32))
         panel_vertices.append(np.arange(off, off + len(Xp), dtype=np.int32))
-        vertex_panel.append(np.full(len(Xp), pi, np.int32))
+        vertex_panel_parts.append(np.full(len(Xp), pi, np.int32))
         for li, (cv, ce, ct, cn) in enumerate(lo):
             cm = remap[cv]
             if (cm < 0).any():
@@ -403,8 +403,8 @@ def mesh_pattern(
         off += len(Xp)
     X = np.concatenate(Xs)
     tris = _orient_ccw(X, np.concatenate(Ts))
-    vertex_panel = np.concatenate(vertex_panel)
-    tri_panel = np.concatenate(tri_panel)
+    vertex_panel = np.concatenate(vertex_panel_parts)
+    tri_panel = np.concatenate(tri_panel_parts)
     x0 = _place(drafted, X, vertex_panel)
     mesh = GarmentMesh(
         X=X, tris=tris, x0=x0, tri_panel=tri_panel, panel_names=[p.name for p in drafted.panels],

@@ -36,7 +36,7 @@ def neighbours(tris: np.ndarray) -> np.ndarray:
     a = np.concatenate([T[:, 1], T[:, 2], T[:, 0]])
     b = np.concatenate([T[:, 2], T[:, 0], T[:, 1]])
     key = np.minimum(a, b) * n + np.maximum(a, b)
-    slot = np.arange(3 * m)  # slot s: triangle s % m, local edge s // m
+    # slot s of a, b, key: triangle s % m, local edge s // m
     order = np.argsort(key, kind="stable")
     ks = key[order]
     same = np.flatnonzero(ks[1:] == ks[:-1])

@@ -105,7 +105,7 @@ def seam_springs(drafted: DraftedPattern, result):
             cb = cb[::-1]
         emit, recv = (ca, cb) if len(ca) >= len(cb) else (cb, ca)
         e, edges, w = match_chains(X, emit, recv)
-        for v, (a, b), wi in zip(e.tolist(), edges.tolist(), w.tolist()):
+        for v, (a, b), wi in zip(e.tolist(), edges.tolist(), w.tolist(), strict=True):
             target = a if wi == 0.0 else (b if wi == 1.0 else -1)
             if target == v:
                 continue  # dart tip sewn to itself

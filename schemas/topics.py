@@ -1,0 +1,184 @@
+"""The topic table: every key the nodes publish on, what it carries, how it is
+delivered, and what recording, replay and compare do with it.
+
+Keys are relative to ``couture/<session>/``. A key ending in ``*`` stands for
+one more key segment, the name of a node (``status/<node>``) or of a solver
+(``solve/result/<solver>``). The bus (couture.bus.session), the recorder,
+replay, compare and the CLI read this table when they need it, so adding a
+topic or a message type is an edit here and in schemas/messages.py only.
+
+The ``solve/<solver>`` queryable is not in the table: a query is invisible to
+subscribers, which is why each request and result is mirrored on
+``solve/request`` and ``solve/result/<solver>``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from schemas.messages import DrapeMsg, EditMsg, MeshMsg, Message, PatternMsg, SolveRequestMsg, SolveResultMsg, StatusMsg
+
+
+@dataclass(frozen=True)
+class Delivery:
+    """How a topic's messages travel (Zenoh publisher settings)."""
+
+    history: int = 0
+    """samples the publisher keeps for subscribers that join late (0: none).
+    A restarted solver or a reopened UI resumes from the latest state."""
+    express: bool = False
+    """sent at once, without batching (latency-critical)"""
+    drop: bool = False
+    """DROP congestion control: a late sample is worthless and may be lost.
+    False: BLOCK, the publisher waits (Zenoh 1.10 can silently lose large
+    fragmented messages under DROP, so never for patterns or meshes)."""
+
+    @property
+    def name(self) -> str:
+        """'history(n)', 'express', 'drop' or a '+'-joined mix; 'reliable' for none of them."""
+        parts = [f"history({self.history})"] if self.history else []
+        parts += ["express"] if self.express else []
+        parts += ["drop"] if self.drop else []
+        return "+".join(parts) or "reliable"
+
+
+HISTORY = Delivery(history=1)
+"""state: the last sample waits for late joiners"""
+EXPRESS = Delivery(express=True)
+"""a user gesture: sent at once, never dropped"""
+PREVIEW = Delivery(express=True, drop=True)
+"""high-rate previews: sent at once, dropped under congestion"""
+PLAIN = Delivery()
+"""reliable, batched, no history"""
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One row of the table."""
+
+    key: str
+    """relative key; a trailing '*' is one segment (a node or solver name)"""
+    msg_type: type[Message]
+    delivery: Delivery
+    recorded: bool
+    """the recorder writes it to MCAP"""
+    replayed: bool
+    """an input: replay re-publishes it from a recording"""
+    compared: bool
+    """an output: compare checks it against a golden recording"""
+    publisher: str
+    """who publishes it (documentation)"""
+
+
+TOPICS: tuple[Topic, ...] = (
+    # A few patterns, so a late joiner also sees the last *valid* design when the newest one was rejected.
+    Topic("pattern", PatternMsg, Delivery(history=8), recorded=True, replayed=True, compared=False,
+          publisher="ui, scripts, sensitivity (3D tug)"),
+    Topic("edit", EditMsg, EXPRESS, recorded=True, replayed=True, compared=False, publisher="ui, scripts"),
+    Topic("mesh/coarse", MeshMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="remesher"),
+    Topic("mesh/fine", MeshMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="remesher"),
+    Topic("drape/predicted", DrapeMsg, PREVIEW, recorded=True, replayed=False, compared=True, publisher="sensitivity"),
+    Topic("drape/coarse", DrapeMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="solver"),
+    Topic("drape/fine", DrapeMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="solver"),
+    Topic("status/*", StatusMsg, PLAIN, recorded=True, replayed=False, compared=False, publisher="every node"),
+    Topic("solve/request", SolveRequestMsg, PLAIN, recorded=True, replayed=False, compared=False,
+          publisher="any solve client"),
+    Topic("solve/result/*", SolveResultMsg, PLAIN, recorded=True, replayed=False, compared=True, publisher="solver"),
+)
+"""The topic table. Readers look it up at call time (``schemas.topics.TOPICS``),
+so a test may extend it."""
+
+
+def _chunks_intersect(a: list[str], b: list[str]) -> bool:
+    """Whether two key expressions, as lists of chunks ('*' one chunk, '**'
+    any number, Zenoh's rules), can match a common key."""
+    if not a and not b:
+        return True
+    if a and a[0] == "**":
+        return _chunks_intersect(a[1:], b) or (bool(b) and _chunks_intersect(a, b[1:]))
+    if b and b[0] == "**":
+        return _chunks_intersect(a, b[1:]) or (bool(a) and _chunks_intersect(a[1:], b))
+    if not a or not b:
+        return False
+    if a[0] == "*" or b[0] == "*" or a[0] == b[0]:
+        return _chunks_intersect(a[1:], b[1:])
+    return False
+
+
+def key_intersects(a: str, b: str) -> bool:
+    """Whether key expressions ``a`` and ``b`` ('drape/*', 'status/*', '**', 'pattern') share a key."""
+    return _chunks_intersect(a.split("/"), b.split("/"))
+
+
+def topic_spec(topic: str) -> Topic | None:
+    """The table row of a concrete relative key ('drape/fine', 'status/ui'), or None."""
+    for t in TOPICS:
+        if key_intersects(t.key, topic):
+            return t
+    return None
+
+
+def topics_matching(keyexpr: str) -> list[Topic]:
+    """Table rows a subscription such as 'mesh/*' or '**' can receive."""
+    return [t for t in TOPICS if key_intersects(keyexpr, t.key)]
+
+
+def type_for_topic(topic: str) -> type[Message] | None:
+    """Message class a relative key such as 'drape/fine' carries, or None."""
+    t = topic_spec(topic)
+    return t.msg_type if t else None
+
+
+def type_for_keyexpr(keyexpr: str) -> type[Message] | None:
+    """The one message class every key under a subscription carries, or None
+    when it covers several types (or none): then each sample's own key decides."""
+    types = {t.msg_type for t in topics_matching(keyexpr)}
+    return types.pop() if len(types) == 1 else None
+
+
+def delivery_for(topic: str) -> Delivery:
+    """How a publisher on ``topic`` sends; keys outside the table travel PLAIN."""
+    t = topic_spec(topic)
+    return t.delivery if t else PLAIN
+
+
+def history_for_subscription(keyexpr: str) -> int:
+    """Samples a subscriber on ``keyexpr`` asks late publishers for: the largest
+    history among the topics it covers, 0 when none keeps any."""
+    return max((t.delivery.history for t in topics_matching(keyexpr)), default=0)
+
+
+def is_recorded(topic: str) -> bool:
+    """Whether the recorder writes messages on this relative key."""
+    t = topic_spec(topic)
+    return t is not None and t.recorded
+
+
+def replayed_topics() -> list[str]:
+    """The inputs replay re-publishes by default, in table order."""
+    return [t.key for t in TOPICS if t.replayed]
+
+
+def compared_topics() -> list[str]:
+    """The outputs compare checks by default, in table order."""
+    return [t.key for t in TOPICS if t.compared]
+
+
+def markdown_table() -> str:
+    """The table as Markdown (the README embeds it; a test keeps them equal)."""
+    rows = ["| key | message | delivery | recorded | replay / compare | publisher |", "|---|---|---|---|---|---|"]
+    for t in TOPICS:
+        role = "replayed" if t.replayed else "compared" if t.compared else "-"
+        key = t.key
+        if key.endswith("/*"):
+            key = key[:-1] + ("<node>" if key.startswith("status/") else "<solver>")
+        rows.append(f"| `{key}` | `{t.msg_type.TYPE}` | {t.delivery.name} | {'yes' if t.recorded else 'no'} "
+                    f"| {role} | {t.publisher} |")
+    return "\n".join(rows)
+
+
+__all__ = [
+    "Delivery", "Topic", "TOPICS", "HISTORY", "EXPRESS", "PREVIEW", "PLAIN", "key_intersects", "topic_spec",
+    "topics_matching", "type_for_topic", "type_for_keyexpr", "delivery_for", "history_for_subscription",
+    "is_recorded", "replayed_topics", "compared_topics", "markdown_table",
+]
