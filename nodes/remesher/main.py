@@ -11,6 +11,8 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from couture.bus import BusConfig, Node
 from couture.bus.worker import LatestWorker
 from couture.pattern.errors import PatternError
@@ -35,10 +37,12 @@ def main(config: Config) -> None:
         pubs = {lv: bus.publisher(f"mesh/{lv}", MeshMsg) for lv in ("coarse", "fine")}
         worker = LatestWorker("remesh", on_error=node.error)
 
-        def publish(up: MeshUpdate, generation: int, psi=None, edit_id: str = "") -> None:
+        def publish(up: MeshUpdate, generation: int, psi: np.ndarray | None = None, edit_id: str = "") -> None:
+            # Ψ rides on the mesh the receivers already hold, marked unchanged so
+            # that none of them resets its state to this mesh's x0
             msg = mesh_to_msg(
                 up.mesh, generation=generation, mesh_generation=up.mesh_generation,
-                psi=psi, psi_edit_id=edit_id,
+                psi=psi, psi_edit_id=edit_id, unchanged=psi is not None,
                 fine_parent_tri=up.fine_parent_tri, fine_bary=up.fine_bary,
             )
             pubs[up.level].put(msg)

@@ -108,6 +108,8 @@ class UIAdapter:
         self.ui.apply_edit({"element": msg.element, "d": msg.d.numpy(), "phase": msg.phase})
 
     def on_mesh(self, msg: MeshMsg) -> None:
+        if msg.unchanged:
+            return  # the mesh on screen, repeated to carry Ψ: keep the drape shown
         self.ui.show_mesh(msg_to_mesh(msg))
 
     def on_drape(self, msg: DrapeMsg) -> None:
