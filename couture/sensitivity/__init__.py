@@ -11,7 +11,7 @@
   solver equilibrium → new sample, release → warm start.
 """
 
-from .bending import bergou_q, length_scale
+from .bending import length_scale
 from .drag3d import DragResult, drag_to_param, project_jacobian
 from .factor import FactorInfo, SensitivityFactor, find_null_modes, rigid_modes
 from .gmls import GMLSCache, gmls_coefficients
@@ -19,6 +19,6 @@ from .predictor import Prediction, Predictor
 
 __all__ = [
     "DragResult", "FactorInfo", "GMLSCache", "Prediction", "Predictor", "SensitivityFactor",
-    "bergou_q", "drag_to_param", "find_null_modes", "gmls_coefficients", "length_scale",
+    "drag_to_param", "find_null_modes", "gmls_coefficients", "length_scale",
     "project_jacobian", "rigid_modes",
 ]
