@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Generic, Literal, TypeVar
 
@@ -25,18 +26,29 @@ T = TypeVar("T")
 
 
 class DesignLog:
-    """Recent designs by pattern generation (the newest ``keep``)."""
+    """Recent designs by pattern generation and by design_id (the newest ``keep`` of each)."""
 
     def __init__(self, keep: int = 16) -> None:
         self.keep = keep
         self._by_gen: dict[int, Design] = {}
+        self._by_id: OrderedDict[str, Design] = OrderedDict()
         self._lock = threading.Lock()
 
-    def add(self, generation: int, design: Design) -> None:
+    def add(self, generation: int, design: Design, design_id: str = "") -> None:
         with self._lock:
             self._by_gen[generation] = design
             for g in sorted(self._by_gen)[: -self.keep]:
                 del self._by_gen[g]
+            if design_id:
+                self._by_id[design_id] = design
+                self._by_id.move_to_end(design_id)
+                while len(self._by_id) > self.keep:
+                    self._by_id.popitem(last=False)
+
+    def by_id(self, design_id: str) -> Design | None:
+        """The design its publisher named ``design_id``, if seen."""
+        with self._lock:
+            return self._by_id.get(design_id)
 
     def exact(self, generation: int) -> Design | None:
         """The design of exactly this generation, if seen."""
@@ -67,6 +79,8 @@ class MeshArrival(Generic[T]):
     mesh_generation: int
     """the remesher's number for this level's mesh (bumps on every new rest shape)"""
     payload: T
+    design_id: str = ""
+    """design_id of the pattern the mesh was drafted from ('' when it had none)"""
 
 
 @dataclass
@@ -95,7 +109,8 @@ class MeshMatcher(Generic[T]):
     mesh whose design has not arrived is parked, one per level (a newer mesh
     of the level replaces it), until :meth:`add_design` brings its design, or
     a newer design shows that its own will not come (then the newest older
-    design stands in, as the remesher had no other to draft from).
+    design stands in, as the remesher had no other to draft from). A mesh
+    that names its design's ``design_id`` gets exactly that design.
     Thread-safe.
     """
 
@@ -109,13 +124,13 @@ class MeshMatcher(Generic[T]):
         self.repeats = 0
         """meshes dropped because that very mesh was already taken"""
 
-    def add_design(self, generation: int, design: Design) -> list[Matched[T]]:
-        """Record a design; returns the parked meshes it releases."""
-        self.designs.add(generation, design)
+    def add_design(self, generation: int, design: Design, design_id: str = "") -> list[Matched[T]]:
+        """Record a design (its publisher's generation and id); returns the parked meshes it releases."""
+        self.designs.add(generation, design, design_id)
         out: list[Matched[T]] = []
         with self._lock:
             for level, m in list(self._parked.items()):
-                d = self._design_for(m.generation)
+                d = self._design_for(m)
                 if d is not None:
                     del self._parked[level]
                     self._taken[level] = m.mesh_generation
@@ -137,7 +152,7 @@ class MeshMatcher(Generic[T]):
             if parked is not None and mesh.mesh_generation < parked.mesh_generation:
                 self.stale += 1
                 return MeshOutcome("stale")
-            d = self._design_for(mesh.generation)
+            d = self._design_for(mesh)
             if d is None:
                 log.info("mesh/%s of generation %d arrived before its pattern; parked",
                          mesh.level, mesh.generation)
@@ -152,10 +167,57 @@ class MeshMatcher(Generic[T]):
         with self._lock:
             return list(self._parked.values())
 
-    def _design_for(self, generation: int) -> Design | None:
+    def _design_for(self, mesh: MeshArrival[T]) -> Design | None:
+        if mesh.design_id:  # the remesher may have numbered it apart from what its publisher asked
+            return self.designs.by_id(mesh.design_id)
+        generation = mesh.generation
         exact = self.designs.exact(generation)
         if exact is not None:
             return exact
         if self.designs.latest_generation > generation:
             return self.designs.at(generation)
         return None
+
+
+class OwnDesigns:
+    """A publisher's own designs and the generations the remesher gave them.
+
+    A publisher asks for a generation (``PatternMsg.generation``) and names
+    its design with a unique ``design_id``; the remesher's meshes carry the
+    generation it actually gave, with that id. Waiting for the drape of
+    exactly one's own design means waiting for that generation.
+    """
+
+    def __init__(self, keep: int = 256) -> None:
+        self.keep = keep
+        self._requested: OrderedDict[str, int] = OrderedDict()
+        """design_id -> generation asked for"""
+        self._given: dict[int, int] = {}
+        """generation asked for -> generation given"""
+        self._lock = threading.Lock()
+
+    def add(self, design_id: str, requested: int) -> None:
+        with self._lock:
+            self._requested[design_id] = requested
+            while len(self._requested) > self.keep:
+                _, r = self._requested.popitem(last=False)
+                self._given.pop(r, None)
+
+    def meshed(self, design_id: str, generation: int) -> bool:
+        """A mesh of ``design_id`` with the remesher's ``generation``; True if the design is ours."""
+        with self._lock:
+            requested = self._requested.get(design_id)
+            if requested is None:
+                return False
+            self._given[requested] = generation
+            return True
+
+    def is_own(self, requested: int) -> bool:
+        with self._lock:
+            return requested in self._requested.values()
+
+    def given(self, requested: int) -> int | None:
+        """The generation the remesher gave our design that asked for ``requested``
+        (None until one of its meshes has been seen)."""
+        with self._lock:
+            return self._given.get(requested)

@@ -16,6 +16,7 @@ def mesh_to_msg(
     psi: np.ndarray | None = None,
     psi_edit_id: str = "",
     unchanged: bool = False,
+    design_id: str = "",
     fine_parent_tri: np.ndarray | None = None,
     fine_bary: np.ndarray | None = None,
 ) -> MeshMsg:
@@ -29,7 +30,7 @@ def mesh_to_msg(
         panel_names=list(mesh.panel_names),
         seam_emitters=mesh.seam_emitters, seam_edges=mesh.seam_edges.reshape(-1, 2),
         seam_weights=mesh.seam_weights, pinned=mesh.pinned,
-        psi=psi, psi_edit_id=psi_edit_id, unchanged=unchanged, fine_parent_tri=fine_parent_tri, fine_bary=fine_bary,
+        psi=psi, psi_edit_id=psi_edit_id, unchanged=unchanged, design_id=design_id, fine_parent_tri=fine_parent_tri, fine_bary=fine_bary,
     )
 
 

@@ -262,3 +262,55 @@ def test_sensitivity_mesh_matching_follows_designs(equilibrium):
     s.take(out.matched)
     assert s.mesh_generation == 2 and s.generation == 2 and s.model.mu == pytest.approx(200.0 / 2.6)
     assert s.offer_mesh(1, 1, mesh).status == "stale"
+
+
+# -- design numbering: one owner (the remesher), designs named by their publishers --------
+
+
+def test_remesher_numbers_designs_whatever_publishers_ask():
+    from couture.remesh.service import RemeshService
+
+    small = msgspec_replace_resolution(design(), 120, 240)
+    s = RemeshService()
+    assert s.next_generation(1) == 1  # a fresh number is given as asked
+    s.set_design(small, 1, "a")
+    assert s.next_generation(1) == 2  # a second client (or a restarted one) asks for 1 again
+    assert s.next_generation(1000) == 1000  # a huge number only moves the count on ...
+    s.set_design(small, 1000, "hostile")
+    assert s.next_generation(3) == 1001  # ... later designs are not dropped, they are numbered above it
+    # a restarted remesher numbers above what the session's meshes and drapes show
+    fresh = RemeshService()
+    fresh.observe(1001, mesh_generation=8)
+    assert fresh.next_generation(1) == 1002
+    (up, *_) = fresh.set_design(small, 1002, "c")
+    assert up.mesh_generation == 9 and up.mesh.generation == 1002 and fresh.design_id == "c"
+
+
+def msgspec_replace_resolution(d: Design, coarse: int, fine: int) -> Design:
+    import msgspec
+
+    from schemas.design import Resolution
+
+    return msgspec.structs.replace(d, resolution=Resolution(coarse_vertices=coarse, fine_vertices=fine))
+
+
+def test_meshes_match_their_design_by_id_when_renumbered():
+    m: MeshMatcher[str] = MeshMatcher()
+    d_a, d_b = design(length=0.5), design(length=0.6)
+    m.add_design(1, d_a, "a")
+    m.add_design(1, d_b, "b")  # a second client asked for the same number
+    out = m.add_mesh(MeshArrival("fine", 2, 2, "fine2", "b"))  # the remesher numbered b 2
+    assert out.matched is not None and out.matched.design is d_b
+    assert m.add_mesh(MeshArrival("fine", 3, 3, "fine3", "c")).status == "parked"  # c not here yet
+    (r,) = m.add_design(5, d_c := design(length=0.7), "c")
+    assert r.design is d_c and r.mesh.generation == 3
+
+
+def test_own_designs_learn_the_given_generation():
+    from couture.designs import OwnDesigns
+
+    own = OwnDesigns()
+    own.add("mine", 1)
+    assert own.is_own(1) and own.given(1) is None and not own.is_own(2)
+    assert not own.meshed("someone-else", 1)
+    assert own.meshed("mine", 7) and own.given(1) == 7

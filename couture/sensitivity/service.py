@@ -30,6 +30,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+import uuid
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -77,7 +78,7 @@ class Press:
     element: str = ""
     """element id of couture.pattern.edit for a 2D drag ('' for a 3D tug)"""
     generation: int = 0
-    """pattern generation the gesture edits"""
+    """pattern generation the editing client saw (the edit message's)"""
     param: str = ""
     """3D tug: the sloper option it drives"""
     picked_vertex: int = -1
@@ -99,6 +100,10 @@ class Gesture:
     press: Press
     mesh_generation: int
     """the fine mesh the gesture's equilibrium lives on"""
+    generation: int
+    """the generation (the remesher's number) of that mesh's design"""
+    design: Design | None
+    """that design: a 3D tug edits it"""
     last_motion: float
     """[s] clock time of the latest pointer motion"""
     ready: bool = False
@@ -141,7 +146,9 @@ class ReleaseOut:
     design: Design | None = None
     """3D tug: the design with the driven option moved by Δg (None otherwise)"""
     generation: int = 0
-    """the generation to publish ``design`` under"""
+    """the generation to ask for when publishing ``design``"""
+    design_id: str = ""
+    """the new design's identity (unique)"""
 
 
 class SensitivityService:
@@ -162,17 +169,20 @@ class SensitivityService:
         self.mesh_generation = -1
         self.generation = -1
         self.model: ClothModel | None = None
+        self.design: Design | None = None
+        """the design the held mesh was drafted from"""
         self.gesture: Gesture | None = None
         self._lock = threading.RLock()
 
     # -- designs and meshes ---------------------------------------------------
-    def offer_design(self, generation: int, design: Design) -> list[Matched[GarmentMesh]]:
+    def offer_design(self, generation: int, design: Design, design_id: str = "") -> list[Matched[GarmentMesh]]:
         """A ``pattern``; returns the meshes that waited for it (to :meth:`take`)."""
-        return self.matcher.add_design(generation, design)
+        return self.matcher.add_design(generation, design, design_id)
 
-    def offer_mesh(self, generation: int, mesh_generation: int, mesh: GarmentMesh) -> MeshOutcome[GarmentMesh]:
+    def offer_mesh(self, generation: int, mesh_generation: int, mesh: GarmentMesh,
+                   design_id: str = "") -> MeshOutcome[GarmentMesh]:
         """A fine mesh: matched with its design (then :meth:`take` it), parked, or dropped."""
-        return self.matcher.add_mesh(MeshArrival("fine", generation, mesh_generation, mesh))
+        return self.matcher.add_mesh(MeshArrival("fine", generation, mesh_generation, mesh, design_id))
 
     def take(self, matched: Matched[GarmentMesh]) -> None:
         """Build the cloth model of a matched mesh (idle time: it costs a model build)."""
@@ -181,6 +191,7 @@ class SensitivityService:
         with self._lock:
             self.mesh, self.mesh_generation, self.generation, self.model = (
                 m.payload, m.mesh_generation, m.generation, model)
+            self.design = matched.design
         log.info("mesh generation %d: %d vertices", m.mesh_generation, m.payload.n_vertices)
 
     def equilibrium(self, mesh_generation: int, x: np.ndarray) -> FactorInfo | None:
@@ -202,7 +213,8 @@ class SensitivityService:
     def press(self, press: Press) -> Gesture:
         """Open a gesture (it waits for its Ψ); replaces any open one."""
         with self._lock:
-            g = Gesture(press=press, mesh_generation=self.mesh_generation, last_motion=self.clock())
+            g = Gesture(press=press, mesh_generation=self.mesh_generation, generation=self.generation,
+                        design=self.design, last_motion=self.clock())
             self.gesture = g
         return g
 
@@ -277,7 +289,7 @@ class SensitivityService:
         return self._out(g, p, err, False)
 
     def _out(self, g: Gesture, p: Prediction, err: float | None, release: bool) -> PredictionOut:
-        return PredictionOut(edit_id=g.edit_id, generation=g.press.generation, mesh_generation=g.mesh_generation,
+        return PredictionOut(edit_id=g.edit_id, generation=g.generation, mesh_generation=g.mesh_generation,
                              x=p.x, d=p.d, method=p.method, error_estimate=err, release=release, prediction=p)
 
     def pause(self) -> Gesture | None:
@@ -324,15 +336,13 @@ class SensitivityService:
         out = self.drag(edit_id, d_raw, release=True)
         with self._lock:
             self.gesture = None
-        if out is None or not g.press.is_tug:
+        if out is None or not g.press.is_tug or g.design is None:
             return ReleaseOut(out)
-        design = self.matcher.designs.exact(g.press.generation) or self.matcher.designs.at(g.press.generation)
-        if design is None:
-            return ReleaseOut(out)
-        new = apply_edit(design, f"param:{g.press.param}", g.d)
-        generation = max(self.matcher.designs.latest_generation, g.press.generation) + 1
-        log.info("3D tug: %s %+.4f (generation %d)", g.press.param, float(g.d[0]), generation)
-        return ReleaseOut(out, new, generation)
+        new = apply_edit(g.design, f"param:{g.press.param}", g.d)
+        # the generation asked for; the remesher numbers the design
+        generation = max(self.matcher.designs.latest_generation, g.generation, g.press.generation) + 1
+        log.info("3D tug: %s %+.4f (asks for generation %d)", g.press.param, float(g.d[0]), generation)
+        return ReleaseOut(out, new, generation, uuid.uuid4().hex)
 
 
 __all__ = ["Gesture", "NoEquilibrium", "PatternError", "Press", "PredictionOut", "ReleaseOut",

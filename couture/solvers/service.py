@@ -97,17 +97,17 @@ class SolveService:
         self.solver = get_solver(self.method)
 
     # -- inputs from the bus: designs and meshes are matched before they are taken
-    def offer_design(self, generation: int, design: Design) -> list[Matched[IncomingMesh]]:
+    def offer_design(self, generation: int, design: Design, design_id: str = "") -> list[Matched[IncomingMesh]]:
         """A ``pattern``: only remembered (a pattern the remesher rejects must
         not disturb the current solve; valid ones come back as meshes).
         Returns the meshes that waited for it, to :meth:`take`."""
-        return self.matcher.add_design(generation, design)
+        return self.matcher.add_design(generation, design, design_id)
 
-    def offer_mesh(self, level: str, generation: int, mesh_generation: int,
-                   incoming: IncomingMesh) -> MeshOutcome[IncomingMesh]:
+    def offer_mesh(self, level: str, generation: int, mesh_generation: int, incoming: IncomingMesh,
+                   design_id: str = "") -> MeshOutcome[IncomingMesh]:
         """A ``mesh/<level>``: matched with its design (then :meth:`take` it),
         parked until its pattern arrives, or dropped as stale or a repeat."""
-        return self.matcher.add_mesh(MeshArrival(level, generation, mesh_generation, incoming))
+        return self.matcher.add_mesh(MeshArrival(level, generation, mesh_generation, incoming, design_id))
 
     def take(self, matched: Matched[IncomingMesh]) -> bool:
         """Adopt a matched mesh and its design; True when both levels of one

@@ -69,7 +69,7 @@ def main(config: Config) -> None:
 
         # -- inputs -----------------------------------------------------------
         def on_pattern(msg: PatternMsg) -> None:
-            for m in service.offer_design(msg.generation, msg.design):
+            for m in service.offer_design(msg.generation, msg.design, msg.design_id):
                 take(m)
 
         def on_mesh(msg: MeshMsg) -> None:
@@ -80,7 +80,7 @@ def main(config: Config) -> None:
                 edits.submit("press", lambda: press_columns(msg.psi_edit_id, psi))
                 if msg.unchanged:
                     return
-            out = service.offer_mesh(msg.generation, msg.mesh_generation, msg_to_mesh(msg))
+            out = service.offer_mesh(msg.generation, msg.mesh_generation, msg_to_mesh(msg), msg.design_id)
             if out.status == "stale":
                 node.count("stale_meshes")
             if out.matched is not None:
@@ -142,8 +142,8 @@ def main(config: Config) -> None:
             if r.prediction is not None:
                 node.count("predictions")
             if r.design is not None:
-                pattern_pub.put(PatternMsg(design=r.design, generation=r.generation, source=config.name,
-                                           name="3D tug"))
+                pattern_pub.put(PatternMsg(design=r.design, generation=r.generation, design_id=r.design_id,
+                                           source=config.name, name="3D tug"))
 
         # -- idle enrichment: a short solve where the pointer pauses ------------
         def enrich(g: Gesture) -> None:

@@ -88,7 +88,7 @@ def main(config: Config) -> None:
                 worker.submit("solve", solve_job)
 
         def on_pattern(msg: PatternMsg) -> None:
-            for m in service.offer_design(msg.generation, msg.design):
+            for m in service.offer_design(msg.generation, msg.design, msg.design_id):
                 worker.submit(f"mesh/{m.mesh.level}", lambda m=m: take(m))
 
         def on_mesh(msg: MeshMsg) -> None:
@@ -98,7 +98,7 @@ def main(config: Config) -> None:
             if msg.fine_parent_tri is not None and msg.fine_bary is not None:
                 prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
             out = service.offer_mesh(msg.level, msg.generation, msg.mesh_generation,
-                                     IncomingMesh(msg_to_mesh(msg), prolong))
+                                     IncomingMesh(msg_to_mesh(msg), prolong), msg.design_id)
             if out.status == "stale":
                 node.count("stale_meshes")
             if out.matched is None:
