@@ -190,34 +190,37 @@ class OwnDesigns:
 
     def __init__(self, keep: int = 256) -> None:
         self.keep = keep
-        self._requested: OrderedDict[str, int] = OrderedDict()
-        """design_id -> generation asked for"""
-        self._given: dict[int, int] = {}
-        """generation asked for -> generation given"""
+        self._design_of: OrderedDict[int, str] = OrderedDict()
+        """generation asked for -> design_id of the newest own design that asked for it"""
+        self._given: dict[str, int] = {}
+        """design_id -> generation given"""
         self._lock = threading.Lock()
 
     def add(self, design_id: str, requested: int) -> None:
         with self._lock:
-            self._requested[design_id] = requested
-            while len(self._requested) > self.keep:
-                _, r = self._requested.popitem(last=False)
-                self._given.pop(r, None)
+            old = self._design_of.pop(requested, None)
+            if old is not None:
+                self._given.pop(old, None)
+            self._design_of[requested] = design_id
+            while len(self._design_of) > self.keep:
+                _, d = self._design_of.popitem(last=False)
+                self._given.pop(d, None)
 
     def meshed(self, design_id: str, generation: int) -> bool:
         """A mesh of ``design_id`` with the remesher's ``generation``; True if the design is ours."""
         with self._lock:
-            requested = self._requested.get(design_id)
-            if requested is None:
+            if design_id not in self._design_of.values():
                 return False
-            self._given[requested] = generation
+            self._given[design_id] = generation
             return True
 
     def is_own(self, requested: int) -> bool:
         with self._lock:
-            return requested in self._requested.values()
+            return requested in self._design_of
 
     def given(self, requested: int) -> int | None:
-        """The generation the remesher gave our design that asked for ``requested``
-        (None until one of its meshes has been seen)."""
+        """The generation the remesher gave our newest design that asked for
+        ``requested`` (None until one of its meshes has been seen)."""
         with self._lock:
-            return self._given.get(requested)
+            d = self._design_of.get(requested)
+            return None if d is None else self._given.get(d)

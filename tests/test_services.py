@@ -314,3 +314,5 @@ def test_own_designs_learn_the_given_generation():
     assert own.is_own(1) and own.given(1) is None and not own.is_own(2)
     assert not own.meshed("someone-else", 1)
     assert own.meshed("mine", 7) and own.given(1) == 7
+    own.add("mine-again", 1)  # the same number asked for again: the newest design is the one waited for
+    assert own.given(1) is None and own.meshed("mine-again", 9) and own.given(1) == 9
