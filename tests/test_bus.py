@@ -189,13 +189,23 @@ def test_node_in_process_publishes_status_and_token(session_name):
 def test_client_pattern_drape_and_solve(session_name):
     from couture.client import Client
     from couture.mesh import grid_sheet
-    from schemas import Design, PatternMsg
+    from schemas import Design, MeshMsg, PatternMsg
+    from schemas.convert import mesh_to_msg
 
     port = free_port()
     with open_session(BusConfig(session=session_name, listen=[f"tcp/127.0.0.1:{port}"])) as solver_bus:
+        # a fake remesher + solver: a mesh naming the design (with the generation
+        # the remesher gives), then its drape
         drape_pub = solver_bus.publisher("drape/fine", DrapeMsg)
-        solver_bus.subscribe("pattern", lambda p: drape_pub.put(
-            DrapeMsg(level="fine", generation=p.generation, x=np.zeros((3, 3)), solver="fake", converged=True)), PatternMsg)
+        mesh_pub = solver_bus.publisher("mesh/fine", MeshMsg)
+        tiny = grid_sheet(0.1, 0.1, 2, 2)
+
+        def answer(p: PatternMsg) -> None:
+            mesh_pub.put(mesh_to_msg(tiny, generation=p.generation, design_id=p.design_id))
+            drape_pub.put(DrapeMsg(level="fine", generation=p.generation, x=np.zeros((3, 3)), solver="fake",
+                                   converged=True))
+
+        solver_bus.subscribe("pattern", answer, PatternMsg)
         solver_bus.serve_solve("fake", lambda req: SolveResultMsg(x=req.mesh.x0.numpy() * 2, converged=True))
         with Client(session=session_name, connect=[f"tcp/127.0.0.1:{port}"]) as c:
             g1 = c.publish_pattern(Design())

@@ -73,9 +73,8 @@ class _CholmodCached:
     """CHOLMOD LLᵀ (supernodal, nested-dissection ordering) with the symbolic
     analysis reused while the sparsity pattern stays the same: the equilibria
     of one mesh share the stiffness pattern, so a refactorization at a new
-    sample is numeric only. Measured on the 10k-vertex strip (loaded 2-core
-    box): supernodal + nesdis factors ~2x faster than simplicial + AMD, with
-    back-substitutions within noise of each other."""
+    sample is numeric only. Supernodal + nested dissection factors garment-size
+    stiffnesses faster than simplicial + AMD (``couture bench sensitivity``)."""
 
     backend = "cholmod"
     mode, ordering = "supernodal", "nesdis"
@@ -105,11 +104,9 @@ class _CholmodCached:
 def _factorize(A, backend: str = "auto"):
     """SPD factorization with ``solve(b)``; raises FactorizationError when A is not SPD.
 
-    'auto': MKL PARDISO when installed (couture[fast]; measured on the
-    sensitivity bench, same machine: refactorization 0.67 s against CHOLMOD's
-    1.62 s at 10k vertices, with Debian's reference BLAS; 0.14 s against 0.12 s
-    at 1.6k, where PARDISO's per-object symbolic analysis dominates), else
-    CHOLMOD (symbolic analysis shared), else SuperLU."""
+    'auto': MKL PARDISO when installed (couture[fast]; the faster at fine-mesh
+    size, see bench/results/sensitivity.json), else CHOLMOD (symbolic
+    analysis shared), else SuperLU."""
     if backend == "auto" and _solvers_factorize is not None and "pardiso" in _available_backends():
         return _solvers_factorize(A, "pardiso")
     if backend in ("auto", "cholmod"):
