@@ -257,9 +257,10 @@ class SensitivityService:
         picked point is insensitive). None before the tug's columns exist."""
         if g.press.picked_vertex < 0:
             return np.asarray(d_raw, dtype=np.float64).reshape(2)
-        if g.s_point is None or g.press.view_proj is None:
+        x_eq = self.predictor.x_eq
+        if g.s_point is None or g.press.view_proj is None or x_eq is None:
             return None
-        x_point = self.predictor.x_eq[g.press.picked_vertex]
+        x_point = x_eq[g.press.picked_vertex]
         r = drag_to_param(g.s_point, g.press.view_proj, g.press.viewport, x_point, d_raw)
         if r.ignored:
             self.count("insensitive_drags")
@@ -323,7 +324,8 @@ class SensitivityService:
             return None
         p.add_sample(d, r.x)
         g.enriched_at = d
-        log.info("cache sample at d=%s (residual %.1e) -> %d samples", np.round(d, 4), r.residual, len(p.cache))
+        log.info("cache sample at d=%s (residual %.1e) -> %d samples", np.round(d, 4), r.residual,
+                 len(p.cache) if p.cache is not None else 0)
         pred = p.drag(d, error_estimate=False)
         return self._out(g, pred, float(r.residual), False)
 
