@@ -21,6 +21,17 @@ pytestmark = [pytest.mark.timeout(300), pytest.mark.slow]
 SMALL = Design(sloper=Sloper(kind="skirt"), resolution=Resolution(coarse_vertices=300, fine_vertices=900))
 
 
+def camera() -> np.ndarray:
+    """View-projection (world [m] -> clip) of a camera 2.6 m in front of the
+    mannequin (+z) looking at it, y up (the UI's initial view)."""
+    f, near, far = 1.0 / np.tan(np.deg2rad(25.0)), 0.1, 10.0
+    proj = np.array([[f, 0, 0, 0], [0, f, 0, 0],
+                     [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)], [0, 0, -1, 0]])
+    view = np.eye(4)
+    view[:3, 3] = [0.0, -0.15, -2.6]
+    return proj @ view
+
+
 def wait_for(cond, timeout: float, what: str):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -73,3 +84,18 @@ def test_press_drag_release_predicts_on_the_clients_design():
         st = wait_for(lambda: (m := client.status.get("sensitivity")) is not None
                       and m.counters.get("press_columns", 0) >= 1 and m, 5, "the press counted in status")
         assert st.counters.get("predictions", 0) >= 2 and not st.last_error, st
+
+        # a 3D tug of the hem (the sloper's length): its release publishes the
+        # edited design, which the remesher numbers and meshes
+        x = fine.x.numpy()
+        hem = int(np.argmin(x[:, 1] - 0.1 * x[:, 2]))  # low, in front
+        tug = client.send_edit("", [0.0, 0.0], phase="press", param="length", picked_vertex=hem,
+                               view_proj=camera(), viewport_px=[800, 800], dofs=["length"])
+        wait_for(lambda: (m := client.latest_mesh("fine")) is not None and m.psi_edit_id == tug.edit_id, 30,
+                 "the remesher's Ψ for the tug")
+        time.sleep(0.5)  # the columns
+        client.send_edit("", [0.0, 40.0], phase="release", edit_id=tug.edit_id, param="length", picked_vertex=hem,
+                         view_proj=camera(), viewport_px=[800, 800], dofs=["length"])
+        new = wait_for(lambda: (m := client.latest_mesh("fine")) is not None and m.generation > gen and m, 60,
+                       "the mesh of the tugged design")
+        assert new.design_id and not new.unchanged
