@@ -101,10 +101,11 @@ def main(config: Config) -> None:
                                      IncomingMesh(msg_to_mesh(msg), prolong), msg.design_id)
             if out.status == "stale":
                 node.count("stale_meshes")
-            if out.matched is None:
+            matched = out.matched
+            if matched is None:
                 return
             state["abort"] = True  # a new mesh supersedes the running solve
-            worker.submit(f"mesh/{msg.level}", lambda: take(out.matched))
+            worker.submit(f"mesh/{msg.level}", lambda: take(matched))
 
         def on_edit(msg: EditMsg) -> None:
             if msg.phase == "press":
