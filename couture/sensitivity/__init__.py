@@ -6,9 +6,12 @@
   samples blended by generalized moving least squares; plain MLS and linear
   prediction for the trade-off menu.
 - :func:`drag_to_param` — 3D tug → sloper parameter change.
-- :class:`Predictor` — what the sensitivity node drives: equilibrium → refactor
-  (idle), press → columns, drag → prediction with an error estimate,
-  solver equilibrium → new sample, release → warm start.
+- :class:`Predictor` — equilibrium → refactor (idle), press → columns,
+  drag → prediction with an error estimate, solver equilibrium → new sample,
+  release → warm start.
+- ``couture.sensitivity.service.SensitivityService`` — the node's state
+  machine over a Predictor: meshes matched with their designs, gestures
+  (press, drag, pause, release, enrich), the 3D tug's design edit.
 """
 
 from .bending import length_scale
