@@ -1,8 +1,7 @@
 """Design identity across processes: the remesher numbers designs, so two
 clients one after the other, a client restarted mid-session and a hostile
 generation number never make a client take another design's mesh or drape
-(issue-14 scenarios, remesher node only: meshes carry the identity the drapes
-then copy)."""
+(remesher node only: meshes carry the identity the drapes then copy)."""
 
 from __future__ import annotations
 
