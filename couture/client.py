@@ -21,6 +21,7 @@ import msgspec
 import numpy as np
 
 from couture.bus import DEFAULT_ENDPOINT, Bus, BusConfig, open_session
+from couture.designs import OwnDesigns
 from couture.mesh import GarmentMesh
 from schemas.arrays import Array, as_array
 from schemas.convert import mesh_to_msg
@@ -65,6 +66,7 @@ class Client:
         self.status: dict[str, StatusMsg] = {}
         """latest status message per node name"""
         self._seen_generation = 0
+        self._own = OwnDesigns()
         self._bus: Bus | None = None
 
     @property
@@ -103,6 +105,9 @@ class Client:
     def _on_mesh(self, msg: MeshMsg) -> None:
         with self._cond:
             self._meshes[msg.level] = msg
+            if msg.design_id:
+                self._own.meshed(msg.design_id, msg.generation)
+            self._seen_generation = max(self._seen_generation, msg.generation)
             self._cond.notify_all()
 
     def _on_status(self, msg: StatusMsg) -> None:
@@ -128,17 +133,44 @@ class Client:
                                f"(live: {self.live_nodes() or 'none'})")
 
     def publish_pattern(self, design: Design | str | os.PathLike, *, name: str = "", wait_subscribers_s: float = 5.0) -> int:
-        """Publish a design (or a pattern JSON path); returns its generation
-        (one more than the newest generation seen on the bus, at least 1)."""
+        """Publish a design (or a pattern JSON path) under a new ``design_id``;
+        returns the generation it asks for (one more than the newest seen on
+        the bus, at least 1). The remesher numbers designs: when it gives
+        another number, :meth:`wait_drape` and :meth:`generation_of` know."""
         if not isinstance(design, Design):
             name = name or Path(design).stem
             design = load_design(design)
+        design_id = uuid.uuid4().hex
         with self._cond:
             gen = self._seen_generation + 1
             self._seen_generation = gen
+            self._own.add(design_id, gen)
         self._pattern_pub.wait_matching(wait_subscribers_s)
-        self._pattern_pub.put(PatternMsg(design=design, generation=gen, source="client", name=name))
+        self._pattern_pub.put(PatternMsg(design=design, generation=gen, design_id=design_id, source="client",
+                                         name=name))
         return gen
+
+    def _target(self, generation: int | None) -> tuple[int | None, bool]:
+        """(generation to match, exact): a generation this client asked for
+        means exactly the one the remesher gave that design (None until known)."""
+        if generation is not None and self._own.is_own(generation):
+            return self._own.given(generation), True
+        return generation, False
+
+    def generation_of(self, requested: int, timeout: float = 60.0) -> int:
+        """The generation the remesher gave this client's design that asked for
+        ``requested`` (waits for its first mesh). Raises TimeoutError."""
+        if not self._own.is_own(requested):
+            raise ValueError(f"generation {requested} was not asked for by this client")
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while (g := self._own.given(requested)) is None:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError(f"no mesh of this client's design (generation {requested} asked for) "
+                                       f"within {timeout:g} s on session {self.cfg.session}")
+                self._cond.wait(left)
+            return g
 
     def send_edit(self, element: str, d: np.ndarray | list[float], *, phase: str = "drag", edit_id: str = "",
                   dofs: list[str] | None = None, generation: int | None = None, **extra: object) -> EditMsg:
@@ -153,14 +185,19 @@ class Client:
                    *, converged: bool | None = None, final: bool | None = None) -> DrapeMsg:
         """The newest drape of ``kind`` ('fine', 'coarse', 'predicted') with
         generation >= ``generation`` (any if None) that arrives or has arrived
-        since the client opened. Raises TimeoutError naming what was missing."""
+        since the client opened; for a generation this client's
+        :meth:`publish_pattern` returned, a drape of exactly that design.
+        Raises TimeoutError naming what was missing."""
         if kind not in self._drapes:
             raise ValueError(f"kind must be one of {list(self._drapes)}, got {kind!r}")
         deadline = time.monotonic() + timeout
 
         def find() -> DrapeMsg | None:
+            target, exact = self._target(generation)
+            if exact and target is None:
+                return None  # the remesher has not numbered our design yet
             for m in reversed(self._drapes[kind]):
-                if ((generation is None or m.generation >= generation)
+                if ((target is None or (m.generation == target if exact else m.generation >= target))
                         and (converged is None or m.converged == converged)
                         and (final is None or m.final == final)):
                     return m

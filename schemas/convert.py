@@ -23,6 +23,8 @@ def mesh_to_msg(
     mesh_generation: int = 0,
     psi: np.ndarray | None = None,
     psi_edit_id: str = "",
+    unchanged: bool = False,
+    design_id: str = "",
     fine_parent_tri: np.ndarray | None = None,
     fine_bary: np.ndarray | None = None,
 ) -> MeshMsg:
@@ -37,7 +39,7 @@ def mesh_to_msg(
         seam_emitters=_wire("seam_emitters", mesh.seam_emitters),
         seam_edges=_wire("seam_edges", mesh.seam_edges.reshape(-1, 2)),
         seam_weights=_wire("seam_weights", mesh.seam_weights), pinned=_wire("pinned", mesh.pinned),
-        psi=as_array(psi, "float64"), psi_edit_id=psi_edit_id,
+        psi=as_array(psi, "float64"), psi_edit_id=psi_edit_id, unchanged=unchanged, design_id=design_id,
         fine_parent_tri=as_array(fine_parent_tri, "int32"), fine_bary=as_array(fine_bary, "float64"),
     )
 

@@ -106,6 +106,11 @@ class PatternMsg(Message, kw_only=True):
     """who published it: 'ui', 'client', 'replay', ..."""
     name: str = ""
     """human-readable design name (file stem)"""
+    design_id: str = ""
+    """identity of this design, chosen by its publisher unique for good (a
+    uuid); the remesher's meshes name it. The header's ``generation`` is only
+    the number the publisher asks for: the remesher numbers designs, and the
+    meshes (hence the drapes) carry the number it gave"""
 
 
 class EditMsg(Message, kw_only=True):
@@ -198,12 +203,20 @@ class MeshMsg(Message, kw_only=True):
     """Ψ for the active edit: dX_i = psi[i] @ dd, [m per unit of d], shape (n, 2, 2), float64"""
     psi_edit_id: str = ""
     """edit_id of the gesture psi belongs to ('' when psi is None)"""
+    design_id: str = ""
+    """design_id of the pattern this mesh was drafted from ('' when it had none)"""
+    unchanged: bool = False
+    """True when this message repeats the mesh already published for this level
+    and mesh_generation only to carry psi: a receiver that holds that mesh
+    keeps it and its state (drape on screen, solver state) and takes only psi"""
     fine_parent_tri: Array | None = None
     """fine level only: coarse triangle containing each fine vertex (in X), shape (n,), int32"""
     fine_bary: Array | None = None
     """fine level only: barycentric coordinates in fine_parent_tri, shape (n, 3), float64"""
 
     def check(self) -> None:
+        if self.unchanged and self.psi is None:
+            raise SchemaError(f"{self.TYPE}: field `$.unchanged`: a repeated mesh must carry psi")
         n = self.X.shape[0]
         for name in ("tris", "seam_emitters", "seam_edges", "pinned"):
             a = getattr(self, name).numpy()

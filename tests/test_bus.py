@@ -186,16 +186,59 @@ def test_node_in_process_publishes_status_and_token(session_name):
         assert obs.live_nodes(timeout=0.5) == []
 
 
+def test_client_waits_for_exactly_its_own_design(session_name):
+    """A drape of someone else's design under the number this client asks for
+    is not taken: the client waits for the generation the remesher gave its
+    design (a fake remesher that numbers it 7)."""
+    from couture.client import Client
+    from couture.mesh import grid_sheet
+    from schemas import Design, MeshMsg, PatternMsg
+    from schemas.convert import mesh_to_msg
+
+    port = free_port()
+    with open_session(BusConfig(session=session_name, listen=[f"tcp/127.0.0.1:{port}"])) as bus:
+        drape_pub = bus.publisher("drape/fine", DrapeMsg)
+        mesh_pub = bus.publisher("mesh/fine", MeshMsg)
+        tiny = grid_sheet(0.1, 0.1, 2, 2)
+
+        def answer(p: PatternMsg) -> None:
+            mesh_pub.put(mesh_to_msg(tiny, generation=7, design_id=p.design_id))
+            drape_pub.put(DrapeMsg(level="fine", generation=7, x=np.zeros((3, 3)), solver="mine", converged=True))
+
+        bus.subscribe("pattern", answer, PatternMsg)
+        with Client(session=session_name, connect=[f"tcp/127.0.0.1:{port}"]) as c:
+            drape_pub.wait_matching(5.0)
+            drape_pub.put(DrapeMsg(level="fine", generation=1, x=np.zeros((3, 3)), solver="foreign", converged=True))
+            deadline = time.monotonic() + 5
+            while not c.drapes("fine"):
+                assert time.monotonic() < deadline
+                time.sleep(0.02)
+            g = c.publish_pattern(Design())
+            assert g == 1  # the number the foreign drape carries
+            d = c.wait_drape("fine", generation=g, timeout=10)
+            assert d.solver == "mine" and d.generation == 7 and c.generation_of(g, timeout=1) == 7
+
+
 def test_client_pattern_drape_and_solve(session_name):
     from couture.client import Client
     from couture.mesh import grid_sheet
-    from schemas import Design, PatternMsg
+    from schemas import Design, MeshMsg, PatternMsg
+    from schemas.convert import mesh_to_msg
 
     port = free_port()
     with open_session(BusConfig(session=session_name, listen=[f"tcp/127.0.0.1:{port}"])) as solver_bus:
+        # a fake remesher + solver: a mesh naming the design (with the generation
+        # the remesher gives), then its drape
         drape_pub = solver_bus.publisher("drape/fine", DrapeMsg)
-        solver_bus.subscribe("pattern", lambda p: drape_pub.put(
-            DrapeMsg(level="fine", generation=p.generation, x=np.zeros((3, 3)), solver="fake", converged=True)), PatternMsg)
+        mesh_pub = solver_bus.publisher("mesh/fine", MeshMsg)
+        tiny = grid_sheet(0.1, 0.1, 2, 2)
+
+        def answer(p: PatternMsg) -> None:
+            mesh_pub.put(mesh_to_msg(tiny, generation=p.generation, design_id=p.design_id))
+            drape_pub.put(DrapeMsg(level="fine", generation=p.generation, x=np.zeros((3, 3)), solver="fake",
+                                   converged=True))
+
+        solver_bus.subscribe("pattern", answer, PatternMsg)
         solver_bus.serve_solve("fake", lambda req: SolveResultMsg(x=req.mesh.x0.numpy() * 2, converged=True))
         with Client(session=session_name, connect=[f"tcp/127.0.0.1:{port}"]) as c:
             g1 = c.publish_pattern(Design())

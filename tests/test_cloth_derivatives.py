@@ -242,3 +242,20 @@ def test_dforces_dX_vs_rebuilt_models():
     # set_rest_positions matches a rebuild
     model.set_rest_positions(mesh.X + h * dX)
     np.testing.assert_allclose(model.forces(x), fp, rtol=0, atol=1e-12 * np.abs(fp).max())
+
+
+@pytest.mark.parametrize("project", [False, True])
+def test_element_hessians_assemble_to_the_membrane_stiffness(project):
+    """Both call sites of the membrane Hessian block (the per-element output
+    and the CSR assembly) give one matrix, compressed triangles included."""
+    model, x = model_and_state()
+    H = np.zeros((len(model.tris), 9, 9))
+    K.membrane_element_hessians(x, model.tris, model.Dminv, model.tri_area, model.mu, model.lam, project, H)
+    assert np.abs(H).max() > 0
+    dofs = (3 * model.tris[:, :, None] + np.arange(3)[None, None, :]).reshape(len(model.tris), 9)
+    rows = np.repeat(dofs[:, :, None], 9, axis=2).ravel()
+    cols = np.repeat(dofs[:, None, :], 9, axis=1).ravel()
+    dense = np.zeros((3 * model.n, 3 * model.n))
+    np.add.at(dense, (rows, cols), H.ravel())
+    Km = model.stiffness(x, ["membrane"], project=project).toarray()
+    np.testing.assert_allclose(dense, Km, rtol=0, atol=1e-14 * np.abs(Km).max())

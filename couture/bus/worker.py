@@ -66,30 +66,3 @@ class LatestWorker:
             self._jobs.clear()
             self._cv.notify_all()
         self._thread.join(timeout)
-
-
-class DesignLog:
-    """Recent designs by pattern generation: a node that receives a mesh takes
-    the fabric and scene of the pattern the mesh came from (or the newest
-    older one), not of the newest pattern, which the remesher may reject."""
-
-    def __init__(self, keep: int = 16) -> None:
-        self.keep = keep
-        self._by_gen: dict[int, Any] = {}
-        self._lock = threading.Lock()
-
-    def add(self, generation: int, design: Any) -> None:
-        with self._lock:
-            self._by_gen[generation] = design
-            for g in sorted(self._by_gen)[:-self.keep]:
-                del self._by_gen[g]
-
-    def at(self, generation: int) -> Any | None:
-        with self._lock:
-            older = [g for g in self._by_gen if g <= generation]
-            return self._by_gen[max(older)] if older else None
-
-    @property
-    def latest_generation(self) -> int:
-        with self._lock:
-            return max(self._by_gen, default=0)

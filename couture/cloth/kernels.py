@@ -148,16 +148,10 @@ def membrane_forces(x, tris, Dminv, area, mu, lam, f):
 
 
 @njit(cache=True, inline="always")
-def _membrane_element_hessian(x, tris, Dminv, area, mu, lam, t, project, b, F, E, S, Sp, U, FFt, H):
-    """H (9, 9) = d²W_t/dx² of triangle t, vertex-major (3a+i).
-
-    H_ab = A [ (b_a^T S b_b) I + mu (b_a.b_b) F F^T + mu u_b u_a^T + lam u_a u_b^T ],
-    u_a = F b_a. The last three terms are J^T C J (C the plane-stress
-    elasticity tensor), PSD for every x; only the geometric term
-    (b_a^T S b_b) I can be indefinite, and only when S has a negative
-    eigenvalue (compression). With ``project`` S is replaced by its positive
-    part there, which makes H PSD and leaves it unchanged in tension.
-    """
+def _membrane_hessian_setup(x, tris, Dminv, area, mu, lam, t, project, b, F, E, S, Sp, U, FFt):
+    """What every 3x3 block of triangle t's Hessian needs (see
+    ``_membrane_hessian_block``): shape vectors b, Sp = S (its positive part
+    with ``project``), U[a] = F b_a and FFt = A mu F F^T."""
     _shape_vectors(Dminv, t, b)
     _deformation(x, tris, t, b, F)
     _stress(F, mu, lam, E, S)
@@ -171,42 +165,35 @@ def _membrane_element_hessian(x, tris, Dminv, area, mu, lam, t, project, b, F, E
             U[a, i] = F[i, 0] * b[a, 0] + F[i, 1] * b[a, 1]
     for i in range(3):
         for j in range(3):
-            FFt[i, j] = F[i, 0] * F[j, 0] + F[i, 1] * F[j, 1]
-    for a in range(3):
-        for c in range(3):
-            g = 0.0
-            bb = b[a, 0] * b[c, 0] + b[a, 1] * b[c, 1]
-            for k in range(2):
-                for l in range(2):
-                    g += b[a, k] * Sp[k, l] * b[c, l]
-            for i in range(3):
-                for j in range(3):
-                    h = mu * bb * FFt[i, j] + mu * U[c, i] * U[a, j] + lam * U[a, i] * U[c, j]
-                    if i == j:
-                        h += g
-                    H[3 * a + i, 3 * c + j] = A * h
+            FFt[i, j] = A * mu * (F[i, 0] * F[j, 0] + F[i, 1] * F[j, 1])
+
+
+@njit(cache=True, inline="always")
+def _membrane_hessian_block(b, Sp, U, FFt, A, mu, lam, a, c, blk):
+    """blk (3, 3) = H_ac = d²W_t/dx_a dx_c of one triangle (area A):
+
+    H_ac = A [ (b_a^T S b_c) I + mu (b_a.b_c) F F^T + mu u_c u_a^T + lam u_a u_c^T ],
+    u_a = F b_a. The last three terms are J^T C J (C the plane-stress
+    elasticity tensor), PSD for every x; only the geometric term
+    (b_a^T S b_c) I can be indefinite, and only when S has a negative
+    eigenvalue (compression). With S replaced by its positive part there
+    (``_membrane_hessian_setup`` with ``project``) H is PSD, and unchanged in
+    tension. H_ca = H_ac^T."""
+    bb = b[a, 0] * b[c, 0] + b[a, 1] * b[c, 1]
+    g = A * (b[a, 0] * (Sp[0, 0] * b[c, 0] + Sp[0, 1] * b[c, 1])
+             + b[a, 1] * (Sp[1, 0] * b[c, 0] + Sp[1, 1] * b[c, 1]))
+    Amu = A * mu
+    Alam = A * lam
+    for i in range(3):
+        for j in range(3):
+            blk[i, j] = bb * FFt[i, j] + Amu * U[c, i] * U[a, j] + Alam * U[a, i] * U[c, j]
+        blk[i, i] += g
 
 
 @njit(cache=True)
 def membrane_element_hessians(x, tris, Dminv, area, mu, lam, project, out):
-    """out (m, 9, 9): every element Hessian (for tests and diagnostics)."""
-    b = np.empty((3, 2))
-    F = np.empty((3, 2))
-    E = np.empty((2, 2))
-    S = np.empty((2, 2))
-    Sp = np.empty((2, 2))
-    U = np.empty((3, 3))
-    FFt = np.empty((3, 3))
-    for t in range(tris.shape[0]):
-        _membrane_element_hessian(x, tris, Dminv, area, mu, lam, t, project, b, F, E, S, Sp, U, FFt, out[t])
-
-
-@njit(cache=True)
-def membrane_stiffness(x, tris, Dminv, area, mu, lam, project, tri_slots, blk_base, blk_stride, data):
-    """data += membrane Hessian (PSD-projected if ``project``);
-    tri_slots (m, 3, 3) scalar-CSR slot of block (tris[t,a], tris[t,c]).
-    Same algebra as ``_membrane_element_hessian``, written block by block
-    (H_ca = H_ac^T) straight into the CSR data."""
+    """out (m, 9, 9): every element Hessian d²W_t/dx², vertex-major (3a+i)
+    (for tests and diagnostics; ``membrane_stiffness`` assembles the same blocks)."""
     b = np.empty((3, 2))
     F = np.empty((3, 2))
     E = np.empty((2, 2))
@@ -216,31 +203,34 @@ def membrane_stiffness(x, tris, Dminv, area, mu, lam, project, tri_slots, blk_ba
     FFt = np.empty((3, 3))
     blk = np.empty((3, 3))
     for t in range(tris.shape[0]):
-        _shape_vectors(Dminv, t, b)
-        _deformation(x, tris, t, b, F)
-        _stress(F, mu, lam, E, S)
-        if project:
-            _clamp_psd_2x2(S, Sp)
-        else:
-            Sp[:, :] = S
-        A = area[t]
+        _membrane_hessian_setup(x, tris, Dminv, area, mu, lam, t, project, b, F, E, S, Sp, U, FFt)
         for a in range(3):
-            for i in range(3):
-                U[a, i] = F[i, 0] * b[a, 0] + F[i, 1] * b[a, 1]
-        for i in range(3):
-            for j in range(3):
-                FFt[i, j] = A * mu * (F[i, 0] * F[j, 0] + F[i, 1] * F[j, 1])
-        Amu = A * mu
-        Alam = A * lam
-        for a in range(3):
-            for c in range(a, 3):
-                bb = b[a, 0] * b[c, 0] + b[a, 1] * b[c, 1]
-                g = A * (b[a, 0] * (Sp[0, 0] * b[c, 0] + Sp[0, 1] * b[c, 1])
-                         + b[a, 1] * (Sp[1, 0] * b[c, 0] + Sp[1, 1] * b[c, 1]))
+            for c in range(3):
+                _membrane_hessian_block(b, Sp, U, FFt, area[t], mu, lam, a, c, blk)
                 for i in range(3):
                     for j in range(3):
-                        blk[i, j] = bb * FFt[i, j] + Amu * U[c, i] * U[a, j] + Alam * U[a, i] * U[c, j]
-                    blk[i, i] += g
+                        out[t, 3 * a + i, 3 * c + j] = blk[i, j]
+
+
+@njit(cache=True)
+def membrane_stiffness(x, tris, Dminv, area, mu, lam, project, tri_slots, blk_base, blk_stride, data):
+    """data += membrane Hessian (PSD-projected if ``project``);
+    tri_slots (m, 3, 3) scalar-CSR slot of block (tris[t,a], tris[t,c]).
+    Blocks from ``_membrane_hessian_block``, the upper ones computed and each
+    written with its transpose."""
+    b = np.empty((3, 2))
+    F = np.empty((3, 2))
+    E = np.empty((2, 2))
+    S = np.empty((2, 2))
+    Sp = np.empty((2, 2))
+    U = np.empty((3, 3))
+    FFt = np.empty((3, 3))
+    blk = np.empty((3, 3))
+    for t in range(tris.shape[0]):
+        _membrane_hessian_setup(x, tris, Dminv, area, mu, lam, t, project, b, F, E, S, Sp, U, FFt)
+        for a in range(3):
+            for c in range(a, 3):
+                _membrane_hessian_block(b, Sp, U, FFt, area[t], mu, lam, a, c, blk)
                 s = tri_slots[t, a, c]
                 base = blk_base[s]
                 st = blk_stride[s]
@@ -322,6 +312,68 @@ def membrane_dforces_dX(x, X, dX, tris, Dminv, area, mu, lam, df):
 # --------------------------------------------------------------------------
 # constant scalar (x I3) terms: bending, seams
 # --------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _bending_stencil_weights(X, st, e, dX, h, w):
+    """w (4,) = K of stencil e at rest positions X + h dX; returns its factor
+    3 / (A0 + A1) [1/m²] (see ``couture.cloth.model``'s module docstring for K)."""
+    i0, i1, i2, i3 = st[e, 0], st[e, 1], st[e, 2], st[e, 3]
+    p0x = X[i0, 0] + h * dX[i0, 0]
+    p0y = X[i0, 1] + h * dX[i0, 1]
+    ex = X[i1, 0] + h * dX[i1, 0] - p0x
+    ey = X[i1, 1] + h * dX[i1, 1] - p0y
+    ax = X[i2, 0] + h * dX[i2, 0] - p0x
+    ay = X[i2, 1] + h * dX[i2, 1] - p0y
+    bx = X[i3, 0] + h * dX[i3, 0] - p0x
+    by = X[i3, 1] + h * dX[i3, 1] - p0y
+    le2 = ex * ex + ey * ey
+    le = np.sqrt(le2)
+    tx, ty = ex / le, ey / le
+    A0 = 0.5 * abs(ex * ay - ey * ax)
+    A1 = 0.5 * abs(ex * by - ey * bx)
+    k2 = le2 / (2.0 * A0)
+    k3 = le2 / (2.0 * A1)
+    s2 = ax * tx + ay * ty
+    s3 = bx * tx + by * ty
+    k1 = -(k2 * s2 + k3 * s3) / le
+    w[0] = -(k1 + k2 + k3)
+    w[1] = k1
+    w[2] = k2
+    w[3] = k3
+    return 3.0 / (A0 + A1)
+
+
+@njit(cache=True)
+def bending_weights(X, st, Kw, fac):
+    """Kw (e, 4) the weights K and fac (e,) = 3 / (A0 + A1) [1/m²] of every
+    bending stencil st (e, 4) at rest positions X (n, 2)."""
+    w = np.empty(4)
+    for e in range(st.shape[0]):
+        fac[e] = _bending_stencil_weights(X, st, e, X, 0.0, w)
+        for a in range(4):
+            Kw[e, a] = w[a]
+
+
+@njit(cache=True)
+def bending_dforces_dX(x, X, dX, st, coef0, h, df):
+    """df (n, 3) += d/de f_bending(x; X + e dX) at e = 0, without assembling a
+    matrix: f_bending = -Σ_e c fac_e K_e (K_e·x) with c = coef0 = k_b · BEND_CONSTANT,
+    each stencil's K and fac differenced centrally with step h (``ClothModel.bend_step``)."""
+    wp = np.empty(4)
+    wm = np.empty(4)
+    for e in range(st.shape[0]):
+        fp = _bending_stencil_weights(X, st, e, dX, h, wp)
+        fm = _bending_stencil_weights(X, st, e, dX, -h, wm)
+        for c in range(3):
+            sp = 0.0
+            sm = 0.0
+            for a in range(4):
+                sp += wp[a] * x[st[e, a], c]
+                sm += wm[a] * x[st[e, a], c]
+            for a in range(4):
+                df[st[e, a], c] -= coef0 * (fp * wp[a] * sp - fm * wm[a] * sm) / (2.0 * h)
+
 
 
 @njit(cache=True)

@@ -143,25 +143,13 @@ def bending_stencils(tris: np.ndarray) -> np.ndarray:
 
 
 def bending_weights(X: np.ndarray, stencils: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """K (e, 4) and the per-stencil factor 3 / (A0 + A1) [1/m²] from rest positions X (n, 2)."""
-    x0, x1, x2, x3 = (X[stencils[:, i]] for i in range(4))
-    e = x1 - x0
-    le2 = np.einsum("ij,ij->i", e, e)
-    le = np.sqrt(le2)
-    t = e / le[:, None]
-
-    def cross(u, v):
-        return u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
-
-    A0 = 0.5 * np.abs(cross(e, x2 - x0))
-    A1 = 0.5 * np.abs(cross(e, x3 - x0))
-    k2 = le2 / (2.0 * A0)
-    k3 = le2 / (2.0 * A1)
-    s2 = np.einsum("ij,ij->i", x2 - x0, t)
-    s3 = np.einsum("ij,ij->i", x3 - x0, t)
-    k1 = -(k2 * s2 + k3 * s3) / le
-    k0 = -(k1 + k2 + k3)
-    return np.column_stack([k0, k1, k2, k3]), 3.0 / (A0 + A1)
+    """K (e, 4) and the per-stencil factor 3 / (A0 + A1) [1/m²] from rest positions X (n, 2)
+    (``kernels.bending_weights``, the one implementation the derivative shares)."""
+    st = np.ascontiguousarray(stencils, dtype=np.int32)
+    Kw = np.empty((len(st), 4))
+    fac = np.empty(len(st))
+    K.bending_weights(np.ascontiguousarray(X, dtype=np.float64), st, Kw, fac)
+    return Kw, fac
 
 
 @dataclass
@@ -654,7 +642,7 @@ class ClothModel:
         """d forces(x; X + e dX)/de at e = 0, shape (n, 3) [N per unit e].
 
         Membrane and gravity analytic; bending by a central difference of
-        its (x-independent) scalar matrix at X ± h dX (step: ``bend_step``).
+        each stencil's weights at X ± h dX (step: ``bend_step``), matrix-free.
         Seams, contact and friction do not depend on X."""
         terms = self._check_terms(terms)
         x = np.ascontiguousarray(x, dtype=np.float64)
@@ -675,6 +663,5 @@ class ClothModel:
         if "bending" in terms and len(self.bend_stencils):
             h = self.bend_step(dX)
             if h > 0:
-                dvals = (self._bend_vals(self.X + h * dX) - self._bend_vals(self.X - h * dX)) / (2.0 * h)
-                df -= self.pattern.scalar_matrix(dvals) @ x
+                K.bending_dforces_dX(x, self.X, dX, self.bend_stencils, self.bend_stiffness * BEND_CONSTANT, h, df)
         return df

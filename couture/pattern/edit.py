@@ -58,7 +58,9 @@ def _dart_params(design: Design, ctx: DraftContext, dart_id: str, element: str) 
 
 def _dofs(design: Design, element: str, ctx: DraftContext):
     """(setter, values q, G) for an element: q are the scalar values the element
-    changes, G (len(q), 2) maps a pointer motion dd to dq; setter(design, q) -> Design."""
+    changes, G (len(q), 2) maps a pointer motion dd to dq; setter(design, q) -> Design.
+    The setter takes any q (the Jacobian differences across an option's bound);
+    :func:`_bounds` gives the range an edit may commit."""
     parts = element.split(":")
     kind = parts[0]
     if kind == "param":
@@ -147,6 +149,18 @@ def _dofs(design: Design, element: str, ctx: DraftContext):
     raise PatternError(element, "unknown element id (expected param:, cv:, dart: or hole:)")
 
 
+def _bounds(design: Design, element: str, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) (n,) of the values an edit of ``element`` may commit: a sloper
+    option's [min, max]; unbounded otherwise (validation judges the result)."""
+    lo, hi = np.full(n, -np.inf), np.full(n, np.inf)
+    if element.startswith("param:"):
+        name = element[len("param:"):]
+        opt = next((o for o in sloper_of(design).options if o.name == name), None)
+        if opt is not None:
+            lo[:], hi[:] = opt.min, opt.max
+    return lo, hi
+
+
 def _stack(p: DraftedPattern):
     return {pn.name: (pn.outline, list(pn.holes)) for pn in p.panels}
 
@@ -175,11 +189,14 @@ def edit_jacobian(design: Design, element_id: str, spacing: float | None = None)
 
 def apply_edit(design: Design, element_id: str, dd) -> Design:
     """The design after moving ``element_id`` by pointer motion dd (2,) [m]
-    (for ``param:`` elements dd[0] is the option change)."""
+    (for ``param:`` elements dd[0] is the option change, and the new value is
+    held to the option's [min, max]). Every edit commits through here: a 2D
+    handle drag and a 3D tug of the drape alike."""
     dd = np.asarray(dd, float).reshape(2)
     _, ctx = draft_with_context(design)
     setter, q, G = _dofs(design, element_id, ctx)
-    return setter(design, q + G @ dd)
+    lo, hi = _bounds(design, element_id, len(q))
+    return setter(design, np.clip(q + G @ dd, lo, hi))
 
 
 def edit_elements(design: Design) -> list[str]:

@@ -12,6 +12,10 @@ how to carry it forward:
 
 It also answers a press with Ψ for the edited element on both levels, and
 owns the coarse -> fine prolongation map.
+
+It numbers the designs of its session (:meth:`RemeshService.next_generation`):
+every design passes through the remesher, so its numbers are the generations
+that meshes and drapes carry, unique and increasing whatever publishers ask for.
 """
 
 from __future__ import annotations
@@ -75,6 +79,11 @@ class RemeshService:
     drafted: DraftedPattern | None = None
     key: tuple | None = None
     generation: int = -1
+    """generation of the current design (-1 before the first)"""
+    design_id: str = ""
+    """the current design's id, as its publisher named it"""
+    seen_generation: int = 0
+    """highest generation seen on the bus (a restarted remesher numbers above it)"""
     _mesh_gen: int = 0
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -82,7 +91,25 @@ class RemeshService:
         self._mesh_gen += 1
         return self._mesh_gen
 
-    def set_design(self, design: Design, generation: int) -> list[MeshUpdate]:
+    def next_generation(self, requested: int) -> int:
+        """The generation a newly received design gets: the one its publisher
+        asks for when no design of the session has used it or a higher one,
+        else one more than the highest used (a client that starts late or
+        restarts, or two clients at once, cannot reuse a number, and a huge
+        number only moves the count on). Call :meth:`set_design` with it."""
+        with self._lock:
+            top = max(self.generation, self.seen_generation)
+        return requested if requested > top else top + 1
+
+    def observe(self, generation: int, mesh_generation: int = 0) -> None:
+        """Numbers seen on the bus (meshes and drapes of this session, possibly
+        from before a restart): later designs and meshes are numbered above
+        them, so downstream nodes never take a new mesh for a stale one."""
+        with self._lock:
+            self.seen_generation = max(self.seen_generation, generation)
+            self._mesh_gen = max(self._mesh_gen, mesh_generation)
+
+    def set_design(self, design: Design, generation: int, design_id: str = "") -> list[MeshUpdate]:
         """Draft, validate and mesh a design; raises PatternError naming the bad element."""
         drafted = validate(design)
         key = structure_key(drafted)
@@ -102,6 +129,7 @@ class RemeshService:
             parent, bary = prolongation(coarse.mesh, fine.mesh)
             updates[1].fine_parent_tri, updates[1].fine_bary = parent, bary
             self.design, self.drafted, self.key, self.generation = design, drafted, key, generation
+            self.design_id = design_id
         return updates
 
     def _new(self, level: str, drafted: DraftedPattern, target: int, generation: int) -> MeshUpdate:

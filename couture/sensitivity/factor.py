@@ -38,8 +38,9 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from couture.cloth.model import ClothModel
+
 from .bending import length_scale, model_bending, model_lame
-from .kernels import fast_dforces_dX, supports_fast_dforces_dX
 
 try:  # the solvers' direct backends (CHOLMOD/PARDISO when installed, SuperLU always)
     from couture.solvers.linalg import FactorizationError, available_backends as _available_backends
@@ -72,9 +73,8 @@ class _CholmodCached:
     """CHOLMOD LLᵀ (supernodal, nested-dissection ordering) with the symbolic
     analysis reused while the sparsity pattern stays the same: the equilibria
     of one mesh share the stiffness pattern, so a refactorization at a new
-    sample is numeric only. Measured on the 10k-vertex strip (loaded 2-core
-    box): supernodal + nesdis factors ~2x faster than simplicial + AMD, with
-    back-substitutions within noise of each other."""
+    sample is numeric only. Supernodal + nested dissection factors garment-size
+    stiffnesses faster than simplicial + AMD (``couture bench sensitivity``)."""
 
     backend = "cholmod"
     mode, ordering = "supernodal", "nesdis"
@@ -104,11 +104,9 @@ class _CholmodCached:
 def _factorize(A, backend: str = "auto"):
     """SPD factorization with ``solve(b)``; raises FactorizationError when A is not SPD.
 
-    'auto': MKL PARDISO when installed (couture[fast]; measured on the
-    sensitivity bench, same machine: refactorization 0.67 s against CHOLMOD's
-    1.62 s at 10k vertices, with Debian's reference BLAS; 0.14 s against 0.12 s
-    at 1.6k, where PARDISO's per-object symbolic analysis dominates), else
-    CHOLMOD (symbolic analysis shared), else SuperLU."""
+    'auto': MKL PARDISO when installed (couture[fast]; the faster at fine-mesh
+    size, see bench/results/sensitivity.json), else CHOLMOD (symbolic
+    analysis shared), else SuperLU."""
     if backend == "auto" and _solvers_factorize is not None and "pardiso" in _available_backends():
         return _solvers_factorize(A, "pardiso")
     if backend in ("auto", "cholmod"):
@@ -148,8 +146,9 @@ class FactorInfo:
     """number of exact rigid free modes projected out"""
     fallback: str = ""
     """empty normally; otherwise why and how the matrix was thickened"""
-    fast_dforces_dX: bool = False
-    """True when presses use the matrix-free bending derivative (checked against the model)"""
+    fast_dforces_dX: bool = True
+    """presses use the model's matrix-free bending derivative (always, since the
+    model has only that one; the field stays for the benchmark's report)"""
     exact_hessian: bool = True
     """True when the unprojected membrane Hessian was factored (exact linearisation)"""
     attempts: list = field(default_factory=list)
@@ -170,7 +169,7 @@ def rigid_modes(x: np.ndarray) -> np.ndarray:
     return B.reshape(-1, 6)
 
 
-def contact_curvature(model, x: np.ndarray, h: float = 1e-6) -> sp.csr_matrix | None:
+def contact_curvature(model: ClothModel, x: np.ndarray, h: float = 1e-6) -> sp.csr_matrix | None:
     """The body-curvature part of the contact Hessian, ``-k_c pen Hess(phi)``
     (3n, 3n), that couture.cloth's Gauss-Newton contact stiffness drops.
 
@@ -180,7 +179,7 @@ def contact_curvature(model, x: np.ndarray, h: float = 1e-6) -> sp.csr_matrix | 
     body's gradient (exact for analytic bodies up to O(h²); for grid SDFs the
     Hessian of the interpolant). None when the model has no contact term.
     """
-    if "contact" not in getattr(model, "terms", ()) or getattr(model, "body", None) is None:
+    if "contact" not in model.terms or model.body is None:
         return None
     phi, _ = model.body.phi_grad(x)
     pen = model.contact_offset - np.asarray(phi)
@@ -231,7 +230,7 @@ class SensitivityFactor:
     factorization and a handful of back-substitutions (``info.refactor_s``).
     """
 
-    def __init__(self, model, x_eq: np.ndarray, bend_floor: bool = True, *, exact_hessian: bool = True,
+    def __init__(self, model: ClothModel, x_eq: np.ndarray, bend_floor: bool = True, *, exact_hessian: bool = True,
                  floor_factor: float = 1e-4, length: float | None = None, singular_tol: float = 1e-10,
                  null_tol: float = 1e-8, check: bool = True, backend: str = "auto", seed: int = 0):
         t0 = time.perf_counter()
@@ -244,11 +243,7 @@ class SensitivityFactor:
         info = FactorInfo(n_dofs=len(self.dofs))
 
         def stiffness(project):
-            try:
-                K = model.stiffness(self.x_eq, project=project)
-            except TypeError:  # a model without the projection switch
-                K = model.stiffness(self.x_eq)
-            K = sp.csr_matrix(K)
+            K = sp.csr_matrix(model.stiffness(self.x_eq, project=project))
             if project is False:
                 C = contact_curvature(model, self.x_eq)
                 if C is not None:
@@ -275,13 +270,9 @@ class SensitivityFactor:
         self.keep = np.setdiff1d(np.arange(len(self.dofs)), gauge)
 
         k_b, Q = model_bending(model)
-        X = getattr(model, "X", None)
-        L = length if length is not None else length_scale(X if X is not None else model.mesh.X)
-        try:
-            lam, mu = model_lame(model)
-            k_floor = floor_factor * (lam + mu) * L * L
-        except AttributeError:
-            k_floor = 0.0
+        L = length if length is not None else length_scale(model.X)
+        lam, mu = model_lame(model)
+        k_floor = floor_factor * (lam + mu) * L * L
         info.bend_stiffness, info.bend_floor = k_b, k_floor
         Qf = sp.kron(Q, sp.identity(3), format="csr")[self.dofs][:, self.dofs]
         self.scale = float(np.median(np.abs(Kff.diagonal()))) or 1.0
@@ -340,29 +331,11 @@ class SensitivityFactor:
         if reasons:
             info.fallback = "; ".join(reasons) + f" -> used +{info.bend_added:.3g} N m bending" + (
                 f", shift {info.shift:.3g} N/m" if info.shift else "")
-        self._fast = self._check_fast(model)
-        info.fast_dforces_dX = self._fast
         info.refactor_s = time.perf_counter() - t0
         self.info = info
 
-    def _check_fast(self, model) -> bool:
-        """Use :func:`fast_dforces_dX` only if it reproduces the model's own
-        ``dforces_dX`` here (a random direction, relative 1e-9): a change in
-        the cloth model's bending can never silently corrupt a press."""
-        if not supports_fast_dforces_dX(model):
-            return False
-        dX = np.random.default_rng(1).standard_normal((self.n, 2))
-        try:
-            a = model.dforces_dX(self.x_eq, dX)
-            b = fast_dforces_dX(model, self.x_eq, dX)
-        except Exception:
-            return False
-        return bool(np.all(np.isfinite(b)) and np.abs(a - b).max() <= 1e-9 * max(np.abs(a).max(), 1e-300))
-
     def dforces_dX(self, dX: np.ndarray) -> np.ndarray:
-        """∂F/∂X · dX (n, 3) at x_eq."""
-        if self._fast:
-            return fast_dforces_dX(self.model, self.x_eq, dX)
+        """∂F/∂X · dX (n, 3) [N per unit of dX] at x_eq, dX (n, 2)."""
         return self.model.dforces_dX(self.x_eq, dX)
 
     @staticmethod

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from couture.cloth.model import ClothModel
+
 from .factor import FactorInfo, SensitivityFactor
 from .gmls import GMLSCache
 
@@ -47,24 +49,15 @@ class Prediction:
     """samples in the cache"""
 
 
-def default_model_at(model, X: np.ndarray):
-    """A model like ``model`` with rest positions X (n, 2), without mutating it.
-
-    couture.cloth.ClothModel: a shallow copy with ``set_rest_positions`` (it
-    replaces, never mutates, the rest-dependent arrays); its in-place stiffness
-    buffer is copied so the two never share state.
-    """
-    for name in ("with_rest", "with_rest_positions"):
-        if hasattr(model, name):
-            return getattr(model, name)(X)
-    for name in ("set_rest_positions", "set_rest"):
-        if hasattr(model, name):
-            m = copy.copy(model)
-            if hasattr(m, "_K"):
-                m._K = m._K.copy()
-            getattr(m, name)(X)
-            return m
-    raise AttributeError("model cannot change its rest positions (no set_rest_positions); pass model_at")
+def default_model_at(model: ClothModel, X: np.ndarray) -> ClothModel:
+    """A model like ``model`` with rest positions X (n, 2), without mutating it:
+    a shallow copy with ``set_rest_positions`` (which replaces, never mutates,
+    the rest-dependent arrays); its in-place stiffness buffer is copied so the
+    two never share state."""
+    m = copy.copy(model)
+    m._K = m._K.copy()
+    m.set_rest_positions(X)
+    return m
 
 
 class Predictor:
@@ -138,8 +131,7 @@ class Predictor:
             f = self.factor
             self.psi = np.asarray(psi, dtype=np.float64)
             self.d0 = self.d_eq.copy() if d0 is None else np.asarray(d0, dtype=np.float64).reshape(2)
-            X = getattr(self.model, "X", None)
-            self.X0 = np.array(X if X is not None else self.model.mesh.X, dtype=np.float64)
+            self.X0 = np.array(self.model.X, dtype=np.float64)
         S = f.columns(self.psi)
         with self._lock:
             self.S0 = S
@@ -163,11 +155,7 @@ class Predictor:
                 self._edit_model = self.model_at(self.model, self.rest_at(d))
                 self._edit_d = d.copy()
             elif not np.array_equal(d, self._edit_d):
-                setter = getattr(self._edit_model, "set_rest_positions", None) or getattr(self._edit_model, "set_rest", None)
-                if setter is None:
-                    self._edit_model = self.model_at(self.model, self.rest_at(d))
-                else:
-                    setter(self.rest_at(d))
+                self._edit_model.set_rest_positions(self.rest_at(d))
                 self._edit_d = d.copy()
             return self._edit_model
 

@@ -1,6 +1,8 @@
 """The solver node's state machine, free of bus code (nodes/solver adapts it).
 
-It holds the design's fabric and scene, the meshes of each level and a cloth
+It pairs each incoming mesh with the design it was drafted from
+(:class:`couture.designs.MeshMatcher`: a mesh that arrives before its pattern
+waits for it, stale meshes are dropped), holds the design's fabric and scene, the meshes of each level and a cloth
 model per level (rebuilt only when topology changes; a followed mesh only
 resets rest positions), picks warm starts, and runs the cascadic
 coarse -> fine refinement of SC §7.1 with progress and abort callbacks.
@@ -24,6 +26,7 @@ from typing import Callable
 import numpy as np
 
 from couture.cloth.model import ClothModel, Scene
+from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome
 from couture.mesh import GarmentMesh
 from couture.solvers import get_solver
 from couture.solvers.base import SolveResult
@@ -70,6 +73,15 @@ class LevelRun:
 
 
 @dataclass
+class IncomingMesh:
+    """What the solver keeps of a ``mesh/<level>`` message."""
+
+    mesh: GarmentMesh
+    prolongation: tuple[np.ndarray, np.ndarray] | None = None
+    """fine level: (coarse parent triangle (n,) int32, barycentric coordinates (n, 3))"""
+
+
+@dataclass
 class SolveService:
     method: str = "kinetic"
     tol: dict[str, float] = field(default_factory=lambda: {"coarse": 1e-3, "fine": 1e-4})
@@ -79,11 +91,33 @@ class SolveService:
     predictions: dict[str, tuple[int, np.ndarray]] = field(default_factory=dict)
     """level -> (mesh_generation the prediction was made on, x)"""
     prolongation: tuple[np.ndarray, np.ndarray] | None = None
+    matcher: MeshMatcher[IncomingMesh] = field(default_factory=MeshMatcher)
 
     def __post_init__(self) -> None:
         self.solver = get_solver(self.method)
 
-    # -- inputs
+    # -- inputs from the bus: designs and meshes are matched before they are taken
+    def offer_design(self, generation: int, design: Design, design_id: str = "") -> list[Matched[IncomingMesh]]:
+        """A ``pattern``: only remembered (a pattern the remesher rejects must
+        not disturb the current solve; valid ones come back as meshes).
+        Returns the meshes that waited for it, to :meth:`take`."""
+        return self.matcher.add_design(generation, design, design_id)
+
+    def offer_mesh(self, level: str, generation: int, mesh_generation: int, incoming: IncomingMesh,
+                   design_id: str = "") -> MeshOutcome[IncomingMesh]:
+        """A ``mesh/<level>``: matched with its design (then :meth:`take` it),
+        parked until its pattern arrives, or dropped as stale or a repeat."""
+        return self.matcher.add_mesh(MeshArrival(level, generation, mesh_generation, incoming, design_id))
+
+    def take(self, matched: Matched[IncomingMesh]) -> bool:
+        """Adopt a matched mesh and its design; True when both levels of one
+        generation are held (a solve can run)."""
+        m = matched.mesh
+        self.set_design(matched.design)
+        self.set_mesh(m.level, m.payload.mesh, m.mesh_generation, m.payload.prolongation)
+        return self.ready()
+
+    # -- state
     def set_design(self, design: Design) -> bool:
         """Returns True when fabric or scene changed (models must be rebuilt)."""
         changed = self.design is None or design.fabric != self.design.fabric or design.scene != self.design.scene

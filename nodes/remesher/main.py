@@ -1,6 +1,8 @@
 """The remesher node: pattern -> mesh/coarse + mesh/fine, Ψ on press.
 
-A thin adapter over :class:`couture.remesh.service.RemeshService`. Bus
+A thin adapter over :class:`couture.remesh.service.RemeshService`, which also
+numbers the session's designs: meshes carry the generation it gave and the
+publisher's ``design_id``. Bus
 callbacks only queue work; one worker thread drafts, meshes and publishes,
 newest pattern first. A bad pattern (validation error naming the element) is
 reported in the node's status and the last good meshes stay published.
@@ -10,6 +12,8 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from couture.bus import BusConfig, Node
 from couture.bus.worker import LatestWorker
@@ -35,28 +39,32 @@ def main(config: Config) -> None:
         pubs = {lv: bus.publisher(f"mesh/{lv}", MeshMsg) for lv in ("coarse", "fine")}
         worker = LatestWorker("remesh", on_error=node.error)
 
-        def publish(up: MeshUpdate, generation: int, psi=None, edit_id: str = "") -> None:
+        def publish(up: MeshUpdate, psi: np.ndarray | None = None, edit_id: str = "") -> None:
+            # Ψ rides on the mesh the receivers already hold, marked unchanged so
+            # that none of them resets its state to this mesh's x0
             msg = mesh_to_msg(
-                up.mesh, generation=generation, mesh_generation=up.mesh_generation,
-                psi=psi, psi_edit_id=edit_id,
+                up.mesh, generation=service.generation, mesh_generation=up.mesh_generation,
+                psi=psi, psi_edit_id=edit_id, unchanged=psi is not None, design_id=service.design_id,
                 fine_parent_tri=up.fine_parent_tri, fine_bary=up.fine_bary,
             )
             pubs[up.level].put(msg)
 
         def on_pattern(msg: PatternMsg) -> None:
             def job() -> None:
-                if msg.generation < service.generation:
-                    node.count("stale_patterns")
-                    return
+                generation = service.next_generation(msg.generation)
                 try:
-                    updates = service.set_design(msg.design, msg.generation)
+                    updates = service.set_design(msg.design, generation, msg.design_id)
                 except PatternError as e:
                     node.count("bad_patterns")
                     node.error(f"pattern generation {msg.generation} rejected: {e}")
                     return
+                if generation != msg.generation:
+                    node.count("renumbered_patterns")
+                    log.warning("pattern %r from %r asked for generation %d, already used: numbered %d",
+                                msg.design_id or msg.name, msg.source, msg.generation, generation)
                 for up in updates:
-                    publish(up, msg.generation)
-                    log.info("gen %d %s: %d vertices (%s, %.0f ms)", msg.generation, up.level,
+                    publish(up)
+                    log.info("gen %d %s: %d vertices (%s, %.0f ms)", generation, up.level,
                              up.mesh.n_vertices, up.how, 1e3 * up.seconds)
                 node.count("meshes", len(updates))
                 worker.submit("warm", service.warm_coordinates)
@@ -78,20 +86,26 @@ def main(config: Config) -> None:
                     node.error(f"edit {msg.edit_id}: no Ψ for {element!r}: {e}")
                     return
                 for level, st in service.levels.items():
-                    up = MeshUpdate(level, st.mesh, st.mesh_generation, "psi")
-                    publish(up, service.generation, psi=psis[level], edit_id=msg.edit_id)
+                    publish(MeshUpdate(level, st.mesh, st.mesh_generation, "psi"), psi=psis[level],
+                            edit_id=msg.edit_id)
                 node.count("psi")
 
             worker.submit("press", job)
 
         def on_drape(msg: DrapeMsg) -> None:
+            service.observe(msg.generation)
             if msg.level in ("coarse", "fine"):
                 service.note_drape(msg.level, msg.mesh_generation, msg.x.numpy())
+
+        def on_mesh(msg: MeshMsg) -> None:
+            service.observe(msg.generation, msg.mesh_generation)  # a predecessor's, after a restart
 
         bus.subscribe("pattern", on_pattern)
         bus.subscribe("edit", on_edit)
         bus.subscribe("drape/coarse", on_drape)
         bus.subscribe("drape/fine", on_drape)
+        bus.subscribe("mesh/coarse", on_mesh)
+        bus.subscribe("mesh/fine", on_mesh)
         try:
             node.run()
         finally:

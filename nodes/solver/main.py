@@ -19,10 +19,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from couture.bus import BusConfig, Node
-from couture.bus.worker import DesignLog, LatestWorker
+from couture.bus.worker import LatestWorker
 from couture.cloth.model import ClothModel
 from couture.solvers import get_solver
-from couture.solvers.service import LevelRun, SolveService, scene_from_design
+from couture.designs import Matched
+from couture.solvers.service import IncomingMesh, LevelRun, SolveService, scene_from_design
 from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, SolveRequestMsg, SolveResultMsg
 from schemas.convert import msg_to_mesh
 
@@ -82,42 +83,29 @@ def main(config: Config) -> None:
             service.run(should_abort=should_abort, on_progress=on_progress, on_level=on_level,
                         progress_period_s=config.progress_period_s)
 
-        designs = DesignLog()
-        parked: dict[str, object] = {}  # level -> mesh job waiting for its pattern
+        def take(matched: Matched[IncomingMesh]) -> None:
+            if service.take(matched):
+                worker.submit("solve", solve_job)
 
         def on_pattern(msg: PatternMsg) -> None:
-            # Only remember it: a pattern the remesher rejects must not stop the
-            # current solve; valid patterns come back as new meshes.
-            designs.add(msg.generation, msg.design)
-            # history may deliver meshes before the pattern they came from
-            for level, job in list(parked.items()):
-                parked.pop(level, None)
-                worker.submit(f"mesh/{level}", job)
+            for m in service.offer_design(msg.generation, msg.design, msg.design_id):
+                worker.submit(f"mesh/{m.mesh.level}", lambda m=m: take(m))
 
         def on_mesh(msg: MeshMsg) -> None:
-            lm = service.levels.get(msg.level)
-            if lm is not None and lm.mesh_generation == msg.mesh_generation:
-                return  # a Ψ re-send of the mesh we hold
-            if lm is not None and msg.mesh_generation < lm.mesh_generation:
-                node.count("stale_meshes")
-                return
-            mesh = msg_to_mesh(msg)
+            if msg.unchanged:
+                return  # the mesh already held, re-sent to carry Ψ
             prolong = None
             if msg.fine_parent_tri is not None and msg.fine_bary is not None:
                 prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
-
-            def job() -> None:
-                design = designs.at(msg.generation)
-                if design is None:
-                    log.info("mesh/%s of generation %d arrived before its pattern; parked", msg.level, msg.generation)
-                    parked[msg.level] = job
-                    return
-                service.set_design(design)
-                service.set_mesh(msg.level, mesh, msg.mesh_generation, prolong)
-                if service.ready():
-                    worker.submit("solve", solve_job)
+            out = service.offer_mesh(msg.level, msg.generation, msg.mesh_generation,
+                                     IncomingMesh(msg_to_mesh(msg), prolong), msg.design_id)
+            if out.status == "stale":
+                node.count("stale_meshes")
+            matched = out.matched
+            if matched is None:
+                return
             state["abort"] = True  # a new mesh supersedes the running solve
-            worker.submit(f"mesh/{msg.level}", job)
+            worker.submit(f"mesh/{msg.level}", lambda: take(matched))
 
         def on_edit(msg: EditMsg) -> None:
             if msg.phase == "press":

@@ -20,6 +20,7 @@ import subprocess
 import sys
 import threading
 import time
+import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -84,7 +85,8 @@ class UIAdapter:
 
     # -- out
     def publish_design(self, design: Design) -> None:
-        self.pattern_pub.put(PatternMsg(design=design, source=self.name, generation=self.ui.generation))
+        self.pattern_pub.put(PatternMsg(design=design, source=self.name, generation=self.ui.generation,
+                                        design_id=uuid.uuid4().hex))
         self.node.count("pattern_out")
 
     def publish_edit(self, edit: dict) -> None:
@@ -108,6 +110,8 @@ class UIAdapter:
         self.ui.apply_edit({"element": msg.element, "d": msg.d.numpy(), "phase": msg.phase})
 
     def on_mesh(self, msg: MeshMsg) -> None:
+        if msg.unchanged:
+            return  # the mesh on screen, repeated to carry Ψ: keep the drape shown
         self.ui.show_mesh(msg_to_mesh(msg))
 
     def on_drape(self, msg: DrapeMsg) -> None:

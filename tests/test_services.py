@@ -1,0 +1,318 @@
+"""The node services driven without Zenoh, the way dora's MockNode tests a node:
+the shared mesh/design matcher, the solver service's matching, and the
+sensitivity service through press, drag, pause, release and a 3D tug.
+Small meshes (a ~50-vertex sheet), no body: every test runs in about a second
+once numba's cache is warm."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from couture.designs import MeshArrival, MeshMatcher
+from couture.mesh import GarmentMesh, grid_sheet
+from couture.pattern import SLOPERS
+from couture.sensitivity.drag3d import project_jacobian
+from couture.sensitivity.service import NoEquilibrium, Press, SensitivityConfig, SensitivityService
+from couture.solvers import get_solver
+from couture.solvers.service import IncomingMesh, SolveService
+from schemas.design import Design, Fabric, SceneFlags, Sloper
+
+SIZE = 0.4
+
+
+def design(stretch: float = 20.0, **params: float) -> Design:
+    """A skirt design whose scene has no body (so models build in milliseconds)."""
+    return Design(sloper=Sloper(kind="skirt", params=dict(params)), fabric=Fabric(stretch_stiffness=stretch),
+                  scene=SceneFlags(body=False, friction=False))
+
+
+def sheet(level: str = "fine", generation: int = 1, n: int = 7) -> GarmentMesh:
+    """A hanging sheet: pinned along its top edge, the rest free under gravity."""
+    m = grid_sheet(SIZE, SIZE, n, n)
+    m.level, m.generation = level, generation
+    m.pinned = np.nonzero(m.X[:, 1] > SIZE - 1e-9)[0].astype(np.int32)
+    m.x0 = np.column_stack([m.X[:, 0], m.X[:, 1] - SIZE, np.zeros(m.n_vertices)])
+    return m
+
+
+# -- the shared matcher ---------------------------------------------------------
+
+
+def arrival(level: str, generation: int, mesh_generation: int) -> MeshArrival[str]:
+    return MeshArrival(level, generation, mesh_generation, f"{level}{mesh_generation}")
+
+
+def test_matcher_parks_a_mesh_until_its_pattern_arrives():
+    m: MeshMatcher[str] = MeshMatcher()
+    assert m.add_mesh(arrival("fine", 1, 1)).status == "parked"
+    assert m.add_mesh(arrival("coarse", 1, 1)).status == "parked"
+    assert m.add_design(0, design()) == []  # an older design does not release them
+    released = m.add_design(1, d1 := design(length=0.5))
+    assert sorted(r.mesh.level for r in released) == ["coarse", "fine"]
+    assert all(r.design is d1 for r in released)
+    assert m.parked() == []
+
+
+def test_matcher_drops_repeats_and_stale_meshes():
+    m: MeshMatcher[str] = MeshMatcher()
+    m.add_design(1, design())
+    assert m.add_mesh(arrival("fine", 1, 3)).status == "matched"
+    assert m.add_mesh(arrival("fine", 1, 3)).status == "repeat"  # Ψ re-send of the mesh held
+    assert m.add_mesh(arrival("fine", 1, 2)).status == "stale"
+    assert m.add_mesh(arrival("coarse", 1, 2)).status == "matched"  # levels are independent
+    assert (m.repeats, m.stale) == (1, 1)
+
+
+def test_matcher_two_designs_in_a_row_each_mesh_gets_its_own():
+    m: MeshMatcher[str] = MeshMatcher()
+    d1, d2 = design(length=0.5), design(length=0.6)
+    m.add_design(1, d1)
+    m.add_design(2, d2)
+    a = m.add_mesh(arrival("fine", 1, 1))
+    b = m.add_mesh(arrival("fine", 2, 2))
+    assert a.matched is not None and a.matched.design is d1
+    assert b.matched is not None and b.matched.design is d2
+
+
+def test_matcher_newer_parked_mesh_replaces_older_and_lost_pattern_falls_back():
+    m: MeshMatcher[str] = MeshMatcher()
+    m.add_design(1, d1 := design())
+    m.add_mesh(arrival("fine", 2, 5))
+    assert m.add_mesh(arrival("fine", 3, 6)).status == "parked"  # replaces the parked 5
+    assert m.add_mesh(arrival("fine", 2, 4)).status == "stale"  # older than the parked one
+    # pattern 3 lost; pattern 4 arrived: mesh 6's own design will not come, the newest older stands in
+    released = m.add_design(4, design(length=0.7))
+    assert [(r.mesh.mesh_generation, r.design is d1) for r in released] == [(6, True)]
+
+
+# -- the solver service's matching ----------------------------------------------
+
+
+def test_solver_service_takes_meshes_only_with_their_design():
+    s = SolveService(method="newton")
+    fine, coarse = sheet("fine", 1, 7), sheet("coarse", 1, 5)
+    assert s.offer_mesh("fine", 1, 1, IncomingMesh(fine)).status == "parked"
+    out = s.offer_mesh("coarse", 1, 1, IncomingMesh(coarse))
+    assert out.status == "parked" and not s.ready()
+    released = s.offer_design(1, d1 := design())
+    assert len(released) == 2
+    ready = [s.take(m) for m in released]
+    assert ready[-1] and s.ready() and s.design is d1
+    assert s.levels["fine"].model.mu == pytest.approx(20.0 / 2.6)
+    # Ψ re-send and stale mesh: nothing taken
+    assert s.offer_mesh("fine", 1, 1, IncomingMesh(fine)).status == "repeat"
+    # a second design with a stiffer fabric and its meshes: the models follow it
+    s.offer_design(2, d2 := design(stretch=200.0))
+    for level, mesh in (("coarse", sheet("coarse", 2, 5)), ("fine", sheet("fine", 2, 7))):
+        out = s.offer_mesh(level, 2, 2, IncomingMesh(mesh))
+        assert out.matched is not None and out.matched.design is d2
+        s.take(out.matched)
+    assert s.ready() and s.levels["fine"].mesh_generation == 2
+    assert s.levels["fine"].model.mu == pytest.approx(200.0 / 2.6)
+    assert s.offer_mesh("fine", 1, 1, IncomingMesh(fine)).status == "stale"
+
+
+# -- the sensitivity service ------------------------------------------------------
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+@pytest.fixture(scope="module")
+def equilibrium():
+    """The fine sheet's equilibrium (mesh generation 1 of design generation 1)."""
+    mesh = sheet()
+    s = SensitivityService()
+    s.offer_design(1, design())
+    s.take(s.offer_mesh(1, 1, mesh).matched)
+    r = get_solver("newton").solve(s.model, mesh.x0, tol=1e-10, max_iters=200)
+    assert r.converged, r.diagnosis
+    return mesh, r.x
+
+
+def ready_service(equilibrium, clock=None, **cfg) -> SensitivityService:
+    mesh, x = equilibrium
+    s = SensitivityService(SensitivityConfig(**cfg), clock=clock or Clock())
+    assert s.offer_mesh(1, 1, mesh).status == "parked"  # before its pattern
+    (m,) = s.offer_design(1, design())
+    s.take(m)
+    assert s.model is not None and s.mesh_generation == 1
+    assert s.equilibrium(1, x) is not None
+    return s
+
+
+def stretch_psi(X: np.ndarray) -> np.ndarray:
+    """Ψ (n, 2, 2) of a drag of the free bottom edge: rest motion fades to 0 at the pinned top."""
+    w = (SIZE - X[:, 1]) / SIZE
+    psi = np.zeros((len(X), 2, 2))
+    psi[:, 0, 0] = w
+    psi[:, 1, 1] = w
+    return psi
+
+
+def test_sensitivity_2d_gesture_press_drag_estimate_release(equilibrium):
+    mesh, x_eq = equilibrium
+    s = ready_service(equilibrium)
+    s.press(Press(edit_id="e1", element="cv:front:hem:0", generation=1))
+    assert s.drag("e1", np.array([0.01, 0.0])) is None  # no Ψ yet: no prediction
+    assert s.psi("e1", stretch_psi(mesh.X)) is not None
+    assert s.drag("other", np.zeros(2)) is None  # another gesture's drag
+    d = np.array([0.0, -0.02])  # pull the hem down 2 cm
+    out = s.drag("e1", d)
+    assert out is not None and out.edit_id == "e1" and out.mesh_generation == 1 and out.generation == 1
+    np.testing.assert_array_equal(out.d, d)
+    assert out.method in ("linear", "gmls") and out.error_estimate is None and not out.release
+    dy = out.x[:, 1] - x_eq[:, 1]
+    assert dy[mesh.pinned].max() == 0.0 and dy.min() < -0.005  # the free part moves down, pins stay
+    est = s.estimate(out)
+    assert est is not None and np.isfinite(est.error_estimate) and est.error_estimate < 0.1
+    newer = s.drag("e1", 2 * d)
+    assert s.estimate(out) is None and newer is not None  # superseded
+    # a solver drape during the gesture does not move the equilibrium
+    assert s.equilibrium(1, x_eq + 0.01) is None
+    r = s.release("e1", d)
+    assert r is not None and r.prediction is not None and r.prediction.release and r.design is None
+    assert s.gesture is None and s.drag("e1", d) is None
+
+
+def test_sensitivity_pause_enriches_the_cache(equilibrium):
+    mesh, _ = equilibrium
+    clock = Clock()
+    s = ready_service(equilibrium, clock, pause_s=0.3, enrich_tol=1e-8)
+    s.press(Press(edit_id="e2", element="cv:front:hem:0", generation=1))
+    s.psi("e2", stretch_psi(mesh.X))
+    d = np.array([0.0, -0.05])
+    assert s.moved("e2") and s.drag("e2", d) is not None
+    clock.t += 0.1
+    assert s.pause() is None  # still moving
+    clock.t += 0.3
+    g = s.pause()
+    assert g is not None and s.pause() is None  # one idle solve per rest
+    before = len(s.predictor.cache)
+    out = s.enrich(g)
+    assert out is not None and len(s.predictor.cache) == before + 1
+    assert out.error_estimate is not None and out.error_estimate < 1e-6
+    assert s.release("e2", d) is not None and s.enrich(g) is None  # the gesture is over
+
+
+def test_sensitivity_without_equilibrium_says_so():
+    s = SensitivityService(clock=Clock())
+    s.press(Press(edit_id="e3", element="cv:front:hem:0"))
+    with pytest.raises(NoEquilibrium):
+        s.psi("e3", np.zeros((5, 2, 2)))
+
+
+def camera() -> tuple[np.ndarray, tuple[int, int]]:
+    """A camera 2 m in front of the sheet (+z), looking at it; y up."""
+    f, near, far = 1.0 / np.tan(np.deg2rad(25.0)), 0.1, 10.0
+    proj = np.array([[f, 0, 0, 0], [0, f, 0, 0],
+                     [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)], [0, 0, -1, 0]])
+    view = np.eye(4)
+    view[:3, 3] = [-SIZE / 2, SIZE / 2, -2.0]
+    return proj @ view, (800, 800)
+
+
+def test_sensitivity_3d_tug_commits_through_apply_edit(equilibrium):
+    """A tug drives the skirt's length: Δg = ŝ·Δd/|ŝ|² while dragging, and the
+    release commits the design edit param:length by Δg, held to the option's range."""
+    mesh, _ = equilibrium
+    s = ready_service(equilibrium)
+    vp, viewport = camera()
+    bottom = int(np.argmin(mesh.X[:, 1] + 1e-3 * np.abs(mesh.X[:, 0] - SIZE / 2)))
+    psi = np.zeros((mesh.n_vertices, 2, 2))
+    psi[:, 1, 0] = -(SIZE - mesh.X[:, 1]) / SIZE  # a longer skirt: the hem goes down
+    s.press(Press(edit_id="t1", generation=1, param="length", picked_vertex=bottom, view_proj=vp,
+                  viewport=viewport))
+    g = s.psi("t1", psi)
+    assert g is not None and g.s_point is not None and g.s_point[1] < 0
+    J = project_jacobian(vp, viewport, s.predictor.x_eq[bottom])
+    sh = J @ g.s_point
+    drag_px = 20.0 * sh / np.linalg.norm(sh)  # 20 px along the screen direction of ∂x/∂g
+    out = s.drag("t1", drag_px)
+    assert out is not None and out.d[1] == 0.0
+    assert out.d[0] == pytest.approx(20.0 / np.linalg.norm(sh))
+    base = next(o for o in SLOPERS["skirt"].options if o.name == "length")
+    r = s.release("t1", drag_px)
+    assert r is not None and r.design is not None and r.generation == 2
+    assert r.design.sloper.params["length"] == pytest.approx(base.default + out.d[0])
+    # a huge tug: the same edit path holds the option to its range
+    s.press(Press(edit_id="t2", generation=1, param="length", picked_vertex=bottom, view_proj=vp,
+                  viewport=viewport))
+    s.psi("t2", psi)
+    r = s.release("t2", 1e6 * sh / np.linalg.norm(sh))
+    assert r is not None and r.design is not None
+    assert r.design.sloper.params["length"] == base.max
+
+
+def test_sensitivity_mesh_matching_follows_designs(equilibrium):
+    """Two designs in a row: the second mesh gets the second fabric; a stale mesh is dropped."""
+    mesh, _ = equilibrium
+    s = SensitivityService(clock=Clock())
+    s.offer_design(1, design())
+    s.offer_design(2, design(stretch=200.0))
+    s.take(s.offer_mesh(1, 1, mesh).matched)
+    assert s.model.mu == pytest.approx(20.0 / 2.6)
+    out = s.offer_mesh(2, 2, sheet(generation=2))
+    s.take(out.matched)
+    assert s.mesh_generation == 2 and s.generation == 2 and s.model.mu == pytest.approx(200.0 / 2.6)
+    assert s.offer_mesh(1, 1, mesh).status == "stale"
+
+
+# -- design numbering: one owner (the remesher), designs named by their publishers --------
+
+
+def test_remesher_numbers_designs_whatever_publishers_ask():
+    from couture.remesh.service import RemeshService
+
+    small = msgspec_replace_resolution(design(), 120, 240)
+    s = RemeshService()
+    assert s.next_generation(1) == 1  # a fresh number is given as asked
+    s.set_design(small, 1, "a")
+    assert s.next_generation(1) == 2  # a second client (or a restarted one) asks for 1 again
+    assert s.next_generation(1000) == 1000  # a huge number only moves the count on ...
+    s.set_design(small, 1000, "hostile")
+    assert s.next_generation(3) == 1001  # ... later designs are not dropped, they are numbered above it
+    # a restarted remesher numbers above what the session's meshes and drapes show
+    fresh = RemeshService()
+    fresh.observe(1001, mesh_generation=8)
+    assert fresh.next_generation(1) == 1002
+    (up, *_) = fresh.set_design(small, 1002, "c")
+    assert up.mesh_generation == 9 and up.mesh.generation == 1002 and fresh.design_id == "c"
+
+
+def msgspec_replace_resolution(d: Design, coarse: int, fine: int) -> Design:
+    import msgspec
+
+    from schemas.design import Resolution
+
+    return msgspec.structs.replace(d, resolution=Resolution(coarse_vertices=coarse, fine_vertices=fine))
+
+
+def test_meshes_match_their_design_by_id_when_renumbered():
+    m: MeshMatcher[str] = MeshMatcher()
+    d_a, d_b = design(length=0.5), design(length=0.6)
+    m.add_design(1, d_a, "a")
+    m.add_design(1, d_b, "b")  # a second client asked for the same number
+    out = m.add_mesh(MeshArrival("fine", 2, 2, "fine2", "b"))  # the remesher numbered b 2
+    assert out.matched is not None and out.matched.design is d_b
+    assert m.add_mesh(MeshArrival("fine", 3, 3, "fine3", "c")).status == "parked"  # c not here yet
+    (r,) = m.add_design(5, d_c := design(length=0.7), "c")
+    assert r.design is d_c and r.mesh.generation == 3
+
+
+def test_own_designs_learn_the_given_generation():
+    from couture.designs import OwnDesigns
+
+    own = OwnDesigns()
+    own.add("mine", 1)
+    assert own.is_own(1) and own.given(1) is None and not own.is_own(2)
+    assert not own.meshed("someone-else", 1)
+    assert own.meshed("mine", 7) and own.given(1) == 7
+    own.add("mine-again", 1)  # the same number asked for again: the newest design is the one waited for
+    assert own.given(1) is None and own.meshed("mine-again", 9) and own.given(1) == 9
