@@ -14,6 +14,7 @@ import numpy as np
 
 from couture.ui import CoutureUI, UIConfig
 from couture.ui.demo import demo_sheet, tugged
+from couture.ui.gestures import Edit
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -35,11 +36,11 @@ def main(argv: list[str] | None = None) -> int:
         ui.show_drape(mesh.x0, "fine", "demo", residual=float("nan"))
         x = mesh.x0
 
-        def on_edit(edit: dict) -> None:
-            print("edit", edit["phase"], edit["element"], np.round(edit["d"], 4).tolist(), flush=True)
-            if edit.get("picked_vertex", -1) >= 0:
-                dx = np.array([edit["d"][0], -edit["d"][1], 0.0]) * 0.0015  # px -> m, screen y down
-                ui.show_drape(tugged(x, edit["picked_vertex"], dx), "predicted", "demo", error_estimate=0.0)
+        def on_edit(edit: Edit) -> None:
+            print("edit", edit.phase, edit.element, np.round(edit.d, 4).tolist(), flush=True)
+            if edit.pick is not None:
+                dx = np.array([edit.d[0], -edit.d[1], 0.0]) * 0.0015  # px -> m, screen y down
+                ui.show_drape(tugged(x, edit.pick.vertex, dx), "predicted", "demo", error_estimate=0.0)
 
         ui.on_edit = on_edit
         ui.on_design_changed = lambda d: print("design", d.sloper.kind, d.sloper.params, flush=True)

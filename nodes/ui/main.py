@@ -23,8 +23,11 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from couture.bus import BusConfig, Node
 from couture.ui import CoutureUI, UIConfig
+from couture.ui.gestures import Edit
 from schemas.convert import msg_to_mesh
 from schemas.design import Design
 from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, StatusMsg
@@ -87,11 +90,11 @@ class UIAdapter:
         self.pattern_pub.put(PatternMsg(design=design, source=self.name, generation=self.ui.generation))
         self.node.count("pattern_out")
 
-    def publish_edit(self, edit: dict) -> None:
-        self._own_edits.add(edit["edit_id"])
+    def publish_edit(self, edit: Edit) -> None:
+        self._own_edits.add(edit.edit_id)
         if len(self._own_edits) > 1000:
             self._own_edits.clear()
-        self.edit_pub.put(EditMsg(generation=self.ui.generation, **edit))
+        self.edit_pub.put(edit_msg(edit, self.ui.generation))
         self.node.count("edit_out")
 
     # -- in (Zenoh threads: store and return)
@@ -105,7 +108,7 @@ class UIAdapter:
     def on_edit(self, msg: EditMsg) -> None:
         if msg.edit_id in self._own_edits or msg.picked_vertex >= 0:
             return  # our own, or a 3D tug (its d is in pixels: nothing to move in 2D)
-        self.ui.apply_edit({"element": msg.element, "d": msg.d.numpy(), "phase": msg.phase})
+        self.ui.preview_remote_edit(msg.element, msg.d.numpy())
 
     def on_mesh(self, msg: MeshMsg) -> None:
         self.ui.show_mesh(msg_to_mesh(msg))
@@ -222,6 +225,18 @@ class UIAdapter:
     def on_status(self, msg: StatusMsg) -> None:
         self.ui.set_node_status(msg.node, kind=msg.kind, state=msg.state, rates=msg.rates,
                                 last_error=msg.last_error)
+
+
+def edit_msg(edit: Edit, generation: int) -> EditMsg:
+    """The ``edit`` message of one gesture phase, for the design of ``generation``."""
+    pick = edit.pick
+    return EditMsg(
+        generation=generation, edit_id=edit.edit_id, phase=edit.phase, element=edit.element, dofs=list(edit.dofs),
+        d=np.asarray(edit.d, np.float64), param=edit.param,
+        picked_vertex=pick.vertex if pick else -1, picked_tri=pick.tri if pick else -1,
+        picked_bary=pick.bary if pick else None, view_proj=pick.view_proj if pick else None,
+        viewport_px=list(pick.viewport_px) if pick and pick.viewport_px else [],
+    )
 
 
 def main(config: Config) -> None:

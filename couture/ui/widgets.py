@@ -1,0 +1,88 @@
+"""Small helpers shared by the UI's panels."""
+
+from __future__ import annotations
+
+import math
+import threading
+from typing import Any, Callable
+
+import numpy as np
+
+
+def on_user_change(handle: Any, fn: Callable[[], None]) -> None:
+    """Run ``fn`` when the designer changes ``handle`` in a browser.
+
+    viser runs a handle's update callbacks also when the code assigns its
+    value, with ``event.client`` None; such a write mirrors state the UI
+    already holds (a design from the bus, a preset's numbers) and must not
+    be sent back out as a user action.
+    """
+    handle.on_update(lambda event: None if event.client is None else fn())
+
+
+def nice_step(span: float) -> float:
+    """A slider step of about span / 200, rounded down to a power of ten."""
+    if span <= 0:
+        return 0.01
+    return float(10 ** math.floor(math.log10(span / 200.0)))
+
+
+Fit = Callable[[float], tuple[tuple[float, float, float], tuple[float, float, float]]]
+"""aspect (width / height) -> camera (position, look_at) [m]"""
+
+
+class ClientFraming:
+    """Frames each browser's camera to its own canvas: once the client has
+    reported its viewport, and again when the viewport's shape changes while
+    the designer has not moved the camera since it was framed."""
+
+    def __init__(self, server: Any, fit: Fit):
+        self.server, self.fit = server, fit
+        self._applied: dict[int, tuple[float, np.ndarray]] = {}
+        """client id -> (aspect, camera position) last set here"""
+        self._lock = threading.Lock()
+        server.on_client_connect(self._connect)
+
+    def _connect(self, client: Any) -> None:
+        client.camera.on_update(lambda cam: self._camera_moved(client, cam))
+
+    def _camera_moved(self, client: Any, cam: Any) -> None:
+        if cam.image_width <= 0 or cam.image_height <= 0:
+            return
+        aspect = cam.image_width / cam.image_height
+        with self._lock:
+            last = self._applied.get(client.client_id)
+        if last is not None:
+            moved_by_user = not np.allclose(np.asarray(cam.position), last[1], atol=1e-4)
+            if moved_by_user or abs(aspect / last[0] - 1.0) < 0.02:
+                return
+        self.apply(client)
+
+    def apply(self, client: Any) -> None:
+        cam = client.camera
+        if cam.image_width <= 0 or cam.image_height <= 0:
+            return
+        aspect = cam.image_width / cam.image_height
+        position, look_at = self.fit(aspect)
+        with self._lock:
+            self._applied[client.client_id] = (aspect, np.asarray(position, np.float64))
+        with client.atomic():
+            cam.up_direction = (0.0, 1.0, 0.0)
+            cam.position = position  # moves look_at along: set it after
+            cam.look_at = look_at
+
+    def reframe(self) -> None:
+        """Frame every connected client now (the content changed)."""
+        for client in list(self.server.get_clients().values()):
+            try:
+                self.apply(client)
+            except Exception:  # a client that left meanwhile
+                pass
+
+
+def fit_distance(half_width: float, half_height: float, fov: float, aspect: float, fill: float = 0.9) -> float:
+    """Camera distance [m] at which a box of the given half extents [m], seen
+    face on with vertical field of view ``fov`` [rad], spans ``fill`` of the
+    canvas in its tighter direction."""
+    t = math.tan(0.5 * fov) * fill
+    return max(half_height / t, half_width / (t * max(aspect, 1e-3)))
