@@ -56,6 +56,11 @@ from schemas.design import Design
 
 log = logging.getLogger("couture.ui")
 
+PANEL_WIDTH_3D = 300
+"""[px] of the design controls (sliders need about this much)"""
+PANEL_WIDTH_2D = 220
+"""[px] of the pattern tools (a column of buttons)"""
+
 
 @dataclass
 class UIConfig:
@@ -113,7 +118,9 @@ class CoutureUI:
         # each view's panel is docked on the page's middle line, so no panel
         # ever covers the mannequin or a pattern piece: the canvases keep the rest
         self.server3d.gui.main_panel.dock_right()
+        self.server3d.gui.main_panel.set_width(PANEL_WIDTH_3D)
         self.server2d.gui.main_panel.dock_left()
+        self.server2d.gui.main_panel.set_width(PANEL_WIDTH_2D)
         self.view3d = DrapeView(self.server3d, n_bands=c.n_bands, show_body=c.show_body)
         self.view2d = PatternView(self.server2d)
         self.view3d.set_fabric(self.design.fabric)

@@ -106,10 +106,12 @@ class DrapeView:
 
     def fit_body(self, aspect: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
         """Camera (position, look_at) [m] of a front view in which the
-        mannequin's bounding box spans 90 % of a canvas of this aspect."""
+        mannequin's bounding box spans 95 % of a canvas of this aspect (its
+        height, or on a narrow canvas the span of its arms)."""
         lo, hi = self.body_box
         c = 0.5 * (lo + hi)
-        dist = fit_distance(0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), CAMERA_FOV, aspect) + (hi[2] - c[2])
+        dist = fit_distance(0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), CAMERA_FOV, aspect,
+                            fill=0.95) + (hi[2] - c[2])
         return (float(c[0]), float(c[1]), float(c[2] + dist)), (float(c[0]), float(c[1]), float(c[2]))
 
     # -- data in ----------------------------------------------------------------

@@ -86,6 +86,16 @@ def layout_offsets(pattern: DraftedPattern, gap: float = 0.08) -> dict[str, np.n
     return out
 
 
+def fit_camera(lo: np.ndarray, hi: np.ndarray, aspect: float) -> tuple[tuple[float, float, float],
+                                                                      tuple[float, float, float]]:
+    """Camera (position, look_at) [m] looking straight down (-z) at the box
+    lo..hi [m] of the pattern plane, the box spanning 90 % of a canvas of this
+    aspect (width / height) in its tighter direction; vertical field of view CAMERA_FOV."""
+    c = 0.5 * (np.asarray(lo) + np.asarray(hi))
+    dist = fit_distance(0.5 * float(hi[0] - lo[0]), 0.5 * float(hi[1] - lo[1]), CAMERA_FOV, aspect)
+    return (float(c[0]), float(c[1]), max(dist, 0.3)), (float(c[0]), float(c[1]), 0.0)
+
+
 class PatternView:
     """Owns the scene of the pattern viser server."""
 
@@ -110,8 +120,8 @@ class PatternView:
         self._handle_node = None
         self._labels: list = []
         self._nodes: dict[str, object] = {}
-        self._framed: tuple[tuple[str, ...], np.ndarray, np.ndarray] | None = None
-        """(panel names, lo, hi) the cameras were framed for"""
+        self._framed: tuple[np.ndarray, np.ndarray] | None = None
+        """the pattern bounds (lo, hi) [m] the cameras were framed for"""
         server.scene.set_up_direction("+y")
         ic = server.initial_camera
         ic.fov = CAMERA_FOV
@@ -130,7 +140,7 @@ class PatternView:
             self.offsets = layout_offsets(pattern)
             self.handles, self.handle_set, self.selected = [], HandleSet([], {}), None
             self._draw_all()
-            self._frame_if_outgrown()
+            self._frame_if_changed()
 
     def set_handles(self, handle_set: HandleSet) -> None:
         """The design's editable elements (planned for the pattern on screen)."""
@@ -165,23 +175,16 @@ class PatternView:
     # -- camera -------------------------------------------------------------------
 
     def fit_pattern(self, aspect: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-        """Camera (position, look_at) [m] looking straight down at the laid-out
-        pattern, every piece inside a canvas of this aspect."""
-        lo, hi = self.bounds()
-        c = 0.5 * (lo + hi)
-        dist = fit_distance(0.5 * float(hi[0] - lo[0]), 0.5 * float(hi[1] - lo[1]), CAMERA_FOV, aspect)
-        return (float(c[0]), float(c[1]), max(dist, 0.3)), (float(c[0]), float(c[1]), 0.0)
+        """Camera (position, look_at) [m] of a canvas of this aspect showing the whole pattern."""
+        return fit_camera(*self.bounds(), aspect)
 
-    def _frame_if_outgrown(self) -> None:
-        """Frame the cameras again when the pattern has new pieces or grew out
-        of the box framed last; smaller edits keep the designer's view."""
+    def _frame_if_changed(self) -> None:
+        """Frame the cameras to the pattern's bounds when they changed: every
+        piece stays in view whatever an edit did to the pattern's size."""
         lo, hi = self.bounds()
-        names = tuple(p.name for p in self.pattern.panels)
-        last = self._framed
-        if last is not None and last[0] == names and np.all(lo >= last[1]) and np.all(hi <= last[2]):
+        if self._framed is not None and np.array_equal(lo, self._framed[0]) and np.array_equal(hi, self._framed[1]):
             return
-        margin = 0.05 * (hi - lo)
-        self._framed = (names, lo - margin, hi + margin)
+        self._framed = (lo, hi)
         ic = self.server.initial_camera
         ic.position, ic.look_at = self.fit_pattern(1.0)
         self.framing.reframe()
@@ -288,7 +291,7 @@ class PatternView:
         for i, (h, p) in enumerate(zip(self.handles, pos)):
             name = f"/handles_labels/{i}"
             self._labels.append(sc.add_label(name, h.label, position=(float(p[0]) + 0.015, float(p[1]), 0.004),
-                                             anchor="center-left", font_screen_scale=0.6,
+                                             anchor="center-left", font_screen_scale=0.8,
                                              visible=self._label_visible(i)))
             self._add(name, self._labels[-1])
         self._handle_node = sc.add_batched_meshes_simple(

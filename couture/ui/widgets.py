@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from typing import Any, Callable
 
 import numpy as np
@@ -45,6 +46,23 @@ class ClientFraming:
 
     def _connect(self, client: Any) -> None:
         client.camera.on_update(lambda cam: self._camera_moved(client, cam))
+        # a client may have reported its viewport before this callback was
+        # attached, and reports again only when its camera changes
+        threading.Thread(target=self._first_frame, args=(client,), name="couture-frame-client", daemon=True).start()
+
+    def _first_frame(self, client: Any, timeout: float = 60.0) -> None:
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < timeout:
+            with self._lock:
+                if client.client_id in self._applied:
+                    return
+            try:
+                if client.camera.image_width > 0:
+                    self.apply(client)
+                    return
+            except Exception:  # viewport not reported yet, or the client left
+                pass
+            time.sleep(0.05)
 
     def _camera_moved(self, client: Any, cam: Any) -> None:
         if cam.image_width <= 0 or cam.image_height <= 0:
@@ -53,7 +71,7 @@ class ClientFraming:
         with self._lock:
             last = self._applied.get(client.client_id)
         if last is not None:
-            moved_by_user = not np.allclose(np.asarray(cam.position), last[1], atol=1e-4)
+            moved_by_user = np.linalg.norm(np.asarray(cam.position) - last[1]) > 1e-3 * np.linalg.norm(last[1])
             if moved_by_user or abs(aspect / last[0] - 1.0) < 0.02:
                 return
         self.apply(client)
