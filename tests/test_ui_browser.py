@@ -104,7 +104,7 @@ def test_drape_tug_yields_edits_with_camera(session):
         n0 = len(events["edit"])
         _drag(page, px, px + np.array([40.0, 0.0]))
         try:
-            wait_until(lambda: any(e.phase == "release" for e in events["edit"][n0:]), 30, page)
+            wait_until(lambda n0=n0: any(e.phase == "release" for e in events["edit"][n0:]), 30, page)
             break
         except TimeoutError:
             tries.append([e.phase for e in events["edit"][n0:]])

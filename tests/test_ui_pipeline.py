@@ -93,9 +93,11 @@ def _garment_pixels(png: bytes) -> int:
 
 
 def _view3d_shot(page, path=None) -> bytes:
-    # the 3D canvas (the control panel is docked beside it)
-    box = _canvas_box(page, "#view3d")
-    clip = {"x": box["x"], "y": box["y"], "width": box["width"], "height": box["height"]}
+    # the 3D canvas: the frame less the control panel docked at its right
+    from couture.ui.app import PANEL_WIDTH_3D
+
+    box = page.locator("#view3d").bounding_box()
+    clip = {"x": box["x"], "y": box["y"], "width": box["width"] - PANEL_WIDTH_3D, "height": box["height"]}
     return page.screenshot(clip=clip, path=str(path) if path else None)
 
 
@@ -231,7 +233,7 @@ def test_c_control_point_drag_predicts_then_solver_commits(live):
     element = "cv:gore0:hem:0"
     start = _pattern_pixels(page, design, element)
     press = None
-    for attempt in range(3):  # the page draws the handles a moment after the pattern
+    for _ in range(3):  # the page draws the handles a moment after the pattern
         n_edits = len(tap.edits)
         page.mouse.move(*start)
         page.mouse.down()
@@ -239,7 +241,7 @@ def test_c_control_point_drag_predicts_then_solver_commits(live):
             page.mouse.move(start[0], start[1] + 4 * k)
             page.wait_for_timeout(60)
         try:
-            press = wait_until(lambda: next((e for e in tap.edits[n_edits:] if e.phase == "press"), None), 15, page)
+            press = wait_until(lambda n=n_edits: next((e for e in tap.edits[n:] if e.phase == "press"), None), 15, page)
             break
         except TimeoutError:
             page.mouse.up()

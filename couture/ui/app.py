@@ -85,7 +85,11 @@ class CoutureUI:
         self.design: Design = design or Design()
         self.generation = 0
         """generation of :attr:`design` (the adapter adopts the bus's numbering)"""
+        # callbacks the bus adapter sets (user actions out)
         self.on_design_changed: Callable[[Design], None] | None = None
+        self.on_edit: Callable[[Edit], None] | None = None
+        self.on_record: Callable[[bool], None] | None = None
+        """cb(on) of the record toggle; the adapter answers with :meth:`set_record_note`"""
         self.on_solver_selected: Callable[[str], None] | None = None
         self.on_pick: Callable[[MaterialPoint], None] | None = None
         self.meshes: dict[str, GarmentMesh] = {}
@@ -128,10 +132,12 @@ class CoutureUI:
                                  on_solver=self.select_solver, on_field=self._show_field)
         self.status = StatusPanel(self.server3d.gui)
         self.session = SessionPanel(self.server3d.gui, c.export_dir, pattern=lambda: self.pattern,
-                                    drape=lambda: (self.view3d.mesh, self.view3d.x))
+                                    drape=lambda: (self.view3d.mesh, self.view3d.x),
+                                    on_record=lambda on: self.on_record and self.on_record(on))
         self.tools = PatternTools(self.server2d.gui, self.view2d, lambda: self.design, self.commit, self._pick)
         self.gestures = Gestures(lambda: self.design, self.commit, restore_pattern=self.view2d.restore,
-                                 say=self.tools.say, tug_option=lambda: self.controls.tug_option)
+                                 say=self.tools.say, tug_option=lambda: self.controls.tug_option,
+                                 on_edit=lambda edit: self.on_edit and self.on_edit(edit))
         self.view3d.on_tug = self.gestures.tug
         self.view3d.on_pick = self._pick
         self.view2d.on_handle_drag = self.gestures.handle_drag
@@ -173,25 +179,6 @@ class CoutureUI:
     @property
     def url2d(self) -> str:
         return f"http://{self.config.host}:{self.server2d.get_port()}/"
-
-    # ------------------------------------------------------------------ callbacks the adapter sets
-
-    @property
-    def on_edit(self) -> Callable[[Edit], None] | None:
-        return self.gestures.on_edit
-
-    @on_edit.setter
-    def on_edit(self, cb: Callable[[Edit], None] | None) -> None:
-        self.gestures.on_edit = cb
-
-    @property
-    def on_record(self) -> Callable[[bool], None] | None:
-        """cb(on) of the record toggle; the adapter answers with :meth:`set_record_note`"""
-        return self.session.on_record
-
-    @on_record.setter
-    def on_record(self, cb: Callable[[bool], None] | None) -> None:
-        self.session.on_record = cb
 
     # ------------------------------------------------------------------ data in (thread-safe, non-blocking)
 

@@ -23,6 +23,7 @@ import viser
 from couture.mesh import GarmentMesh
 from couture.ui import colormaps
 from couture.ui.geometry import CameraState, MaterialPoint, closest_material_point, ray_hit
+from couture.ui.state import VISER_DRAG_PHASE, Phase
 from couture.ui.widgets import ClientFraming, fit_distance
 from schemas.design import Fabric
 
@@ -50,7 +51,7 @@ def same_geometry(a: GarmentMesh, b: GarmentMesh) -> bool:
             and np.array_equal(a.tris, b.tris) and np.array_equal(a.X, b.X))
 
 
-TugCallback = Callable[[str, MaterialPoint, int, tuple[float, float], tuple[float, float], CameraState | None], None]
+TugCallback = Callable[[Phase, MaterialPoint, int, tuple[float, float], tuple[float, float], CameraState | None], None]
 """cb(phase 'press'|'drag'|'release', material point, picked vertex,
 press screen position [px], current screen position [px], camera)"""
 
@@ -231,7 +232,7 @@ class DrapeView:
         with self._lock:
             if self.mesh is None or self.x is None:
                 return
-            phase = {"start": "press", "update": "drag", "end": "release"}[event.phase]
+            phase = VISER_DRAG_PHASE[event.phase]
             if phase == "press":
                 mp = closest_material_point(self.x, self.mesh.tris, event.start_position)
                 try:

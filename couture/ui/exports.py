@@ -56,27 +56,31 @@ class SessionPanel:
 
     def __init__(self, gui: viser.GuiApi, export_dir: Path, *,
                  pattern: Callable[[], DraftedPattern | None],
-                 drape: Callable[[], tuple[GarmentMesh | None, np.ndarray | None]]):
+                 drape: Callable[[], tuple[GarmentMesh | None, np.ndarray | None]],
+                 on_record: Callable[[bool], object]):
         self.export_dir = Path(export_dir)
-        self.pattern, self.drape = pattern, drape
-        self.on_record: Callable[[bool], None] | None = None
-        """cb(on); the bus adapter answers with :meth:`show_record`"""
+        self.pattern, self.drape, self.on_record = pattern, drape, on_record
         with gui.add_folder("Session", expand_by_default=False):
             self.record = gui.add_checkbox("record", False)
             on_user_change(self.record, lambda: self._record(bool(self.record.value)))
             self.record_note = gui.add_markdown("")
             self.pattern_buttons = gui.add_button_group("export pattern", PATTERN_FORMATS)
-            self.pattern_buttons.on_click(lambda ev: self.export_pattern(ev.target.value, ev.client))
+            self.pattern_buttons.on_click(self._pattern_clicked)
             self.drape_buttons = gui.add_button_group("export drape", DRAPE_FORMATS)
-            self.drape_buttons.on_click(lambda ev: self.export_drape(ev.target.value, ev.client))
+            self.drape_buttons.on_click(self._drape_clicked)
             self.note = gui.add_markdown("")
 
+    def _pattern_clicked(self, event: viser.GuiEvent) -> None:
+        self.export_pattern(str(event.target.value), event.client)
+
+    def _drape_clicked(self, event: viser.GuiEvent) -> None:
+        self.export_drape(str(event.target.value), event.client)
+
     def _record(self, on: bool) -> None:
-        if self.on_record is not None:
-            try:
-                self.on_record(on)
-            except Exception:
-                log.exception("the record toggle failed")
+        try:
+            self.on_record(on)
+        except Exception:
+            log.exception("the record toggle failed")
 
     def show_record(self, text: str, on: bool | None = None) -> None:
         """What the record toggle did (file path, or why not); ``on`` moves the toggle."""

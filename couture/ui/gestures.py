@@ -12,19 +12,17 @@ import logging
 import time
 import uuid
 from dataclasses import dataclass
-from typing import Callable, Literal
+from typing import Callable
 
 import numpy as np
 
 from couture import pattern as pattern_model
 from couture.ui.geometry import CameraState, MaterialPoint
 from couture.ui.handles import Handle
+from couture.ui.state import Phase
 from schemas.design import Design
 
 log = logging.getLogger("couture.ui")
-
-Phase = Literal["press", "drag", "release"]
-
 
 @dataclass(frozen=True)
 class ScreenPick:
@@ -65,10 +63,10 @@ class Gestures:
 
     def __init__(self, design: Callable[[], Design], commit: Callable[[Design], None], *,
                  restore_pattern: Callable[[], None], say: Callable[[str], None],
-                 tug_option: Callable[[], str]):
+                 tug_option: Callable[[], str], on_edit: Callable[[Edit], object]):
         self.design, self.commit = design, commit
         self.restore_pattern, self.say, self.tug_option = restore_pattern, say, tug_option
-        self.on_edit: Callable[[Edit], None] | None = None
+        self.on_edit = on_edit
         self.last_edit_stamp = 0.0
         """Unix time [s] of the latest gesture event"""
         self._edit_id = ""
@@ -80,11 +78,10 @@ class Gestures:
         return self._edit_id
 
     def _emit(self, edit: Edit) -> None:
-        if self.on_edit is not None:
-            try:
-                self.on_edit(edit)
-            except Exception:
-                log.exception("handing an edit on failed")
+        try:
+            self.on_edit(edit)
+        except Exception:
+            log.exception("handing an edit on failed")
 
     def handle_drag(self, phase: Phase, handle: Handle, d: np.ndarray) -> None:
         """A handle drag; ``d`` is already in the element's convention (Handle.element_delta)."""

@@ -17,7 +17,6 @@ unaffected, and picking subtracts the offset before the mesh lookup.
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -27,6 +26,7 @@ from couture.mesh import GarmentMesh
 from couture.pattern.drafted import DraftedPattern, Panel, Segment
 from couture.ui.geometry import MaterialPoint, locate_in_pattern
 from couture.ui.handles import Handle, HandleSet
+from couture.ui.state import VISER_DRAG_PHASE, Phase
 from couture.ui.widgets import ClientFraming, fit_distance
 
 SEAM_PALETTE = np.array([
@@ -110,7 +110,7 @@ class PatternView:
         """index of the selected handle (its name shows), None for none"""
         self.show_all_labels = False
         self.show_mesh_edges = False
-        self.on_handle_drag: Callable[[str, Handle, np.ndarray], None] | None = None
+        self.on_handle_drag: Callable[[Phase, Handle, np.ndarray], None] | None = None
         """cb(phase 'press'|'drag'|'release', handle, d): d is the edit's d for the
         pointer motion since press (Handle.element_delta)"""
         self.on_click: Callable[[np.ndarray, str | None], None] | None = None
@@ -288,7 +288,7 @@ class PatternView:
         ico = trimesh.creation.icosphere(subdivisions=1, radius=HANDLE_RADIUS)
         pos = self.handle_positions()
         cols = np.array([HANDLE_COLORS.get(h.kind, HANDLE_ACTIVE) for h in self.handles], np.uint8)
-        for i, (h, p) in enumerate(zip(self.handles, pos)):
+        for i, (h, p) in enumerate(zip(self.handles, pos, strict=True)):
             name = f"/handles_labels/{i}"
             self._labels.append(sc.add_label(name, h.label, position=(float(p[0]) + 0.015, float(p[1]), 0.004),
                                              anchor="center-left", font_screen_scale=0.8,
@@ -436,7 +436,7 @@ class PatternView:
         with self._lock:
             if event.instance_index is None or event.instance_index >= len(self.handles):
                 return
-            phase = {"start": "press", "update": "drag", "end": "release"}[event.phase]
+            phase = VISER_DRAG_PHASE[event.phase]
             if phase == "press":
                 h = self.handles[event.instance_index]
                 self._drag = {"handle": h, "grab": np.asarray(event.end_position[:2], np.float64),
@@ -507,7 +507,7 @@ def _triangulate(P: np.ndarray, holes: list[np.ndarray]) -> tuple[np.ndarray, np
         return None
     starts = np.cumsum([0] + [len(L) for L in loops[:-1]])
     segs = np.concatenate([s + np.column_stack([np.arange(len(L)), (np.arange(len(L)) + 1) % len(L)])
-                           for s, L in zip(starts, loops)])
+                           for s, L in zip(starts, loops, strict=True)])
     data = {"vertices": np.concatenate(loops), "segments": segs}
     if len(loops) > 1:
         data["holes"] = np.array([_point_inside(L) for L in loops[1:]])

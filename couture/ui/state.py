@@ -7,7 +7,7 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, Literal, TypeVar
 
 import numpy as np
 
@@ -15,6 +15,11 @@ from couture.pattern import SLOPERS, Option
 from schemas.design import Fabric
 
 T = TypeVar("T")
+
+Phase = Literal["press", "drag", "release"]
+"""phase of a drag gesture"""
+VISER_DRAG_PHASE: dict[str, Phase] = {"start": "press", "update": "drag", "end": "release"}
+"""viser's drag event phase -> ours"""
 
 
 class LatestSlot(Generic[T]):

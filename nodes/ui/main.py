@@ -28,6 +28,7 @@ import numpy as np
 from couture.bus import BusConfig, Node
 from couture.ui import CoutureUI, UIConfig
 from couture.ui.gestures import Edit
+from schemas.arrays import Array
 from schemas.convert import msg_to_mesh
 from schemas.design import Design
 from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, StatusMsg
@@ -43,7 +44,7 @@ class Config:
     host: str = "127.0.0.1"
     """viser binds here (loopback by default)"""
     port: int = 8080
-    """3D view port; the pattern view is port + 1 and the combined page port + 2"""
+    """the combined page (what users open); the 3D view is port + 1, the pattern view port + 2"""
     export_dir: Path = Path("out/exports")
     record_dir: Path = Path("out/recordings")
     """where the record toggle writes session-<time>.mcap (when no recorder node runs)"""
@@ -232,9 +233,10 @@ def edit_msg(edit: Edit, generation: int) -> EditMsg:
     pick = edit.pick
     return EditMsg(
         generation=generation, edit_id=edit.edit_id, phase=edit.phase, element=edit.element, dofs=list(edit.dofs),
-        d=np.asarray(edit.d, np.float64), param=edit.param,
+        d=Array.from_numpy(np.asarray(edit.d, np.float64)), param=edit.param,
         picked_vertex=pick.vertex if pick else -1, picked_tri=pick.tri if pick else -1,
-        picked_bary=pick.bary if pick else None, view_proj=pick.view_proj if pick else None,
+        picked_bary=Array.from_numpy(pick.bary) if pick else None,
+        view_proj=Array.from_numpy(pick.view_proj) if pick and pick.view_proj is not None else None,
         viewport_px=list(pick.viewport_px) if pick and pick.viewport_px else [],
     )
 
