@@ -347,3 +347,46 @@ def test_fabric_presets_are_the_design_fabric():
     from schemas.design import Fabric
 
     assert all(isinstance(f, Fabric) and f.name == name for name, f in FABRIC_PRESETS.items())
+
+
+def test_client_framing_follows_the_canvas_until_the_designer_moves_the_camera():
+    """Each browser is framed for its own canvas shape; a resize reframes it,
+    also when the browser's report crossed the framing on its way; once the
+    designer has moved the camera, a resize leaves it alone."""
+    import contextlib
+    from types import SimpleNamespace
+
+    from couture.ui.widgets import ClientFraming
+
+    class Camera:
+        def __init__(self):
+            self.image_width = self.image_height = 0
+            self.position, self.look_at, self.up_direction = (0.0, 0.0, 9.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0)
+            self.callbacks = []
+
+        def on_update(self, cb):
+            self.callbacks.append(cb)
+
+        def report(self, width, height, position=None):
+            self.image_width, self.image_height = width, height
+            if position is not None:
+                self.position = position
+            for cb in self.callbacks:
+                cb(self)
+
+    cam = Camera()
+    client = SimpleNamespace(client_id=1, camera=cam, atomic=contextlib.nullcontext)
+    connected = []
+    server = SimpleNamespace(on_client_connect=connected.append, get_clients=lambda: {1: client},
+                             initial_camera=SimpleNamespace(position=(0.0, 0.0, 9.0)))
+    framing = ClientFraming(server, lambda aspect: ((0.0, 0.0, 1.0 / aspect), (0.0, 0.0, 0.0)))
+    connected[0](client)
+    cam.report(800, 800)
+    assert wait_for(lambda: cam.position == (0.0, 0.0, 1.0))
+    cam.report(400, 800, position=(0.0, 0.0, 9.0))  # a stale report: still at the initial camera
+    assert cam.position == (0.0, 0.0, 2.0)
+    cam.report(400, 800, position=(0.3, 0.0, 2.5))  # the designer orbits
+    cam.report(800, 800)
+    assert cam.position == (0.3, 0.0, 2.5)
+    framing.reframe()  # new content frames again
+    assert cam.position == (0.0, 0.0, 1.0)
