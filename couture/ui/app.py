@@ -9,15 +9,14 @@ GUI APIs, CoutureUI owns the servers and wires the parts, one job each:
 - :class:`~couture.ui.tools.PatternTools`: pattern tools → strokes;
 - :class:`~couture.ui.gestures.Gestures`: drags → typed edits;
 - :class:`~couture.ui.exports.SessionPanel`: record toggle, exports;
-- :class:`~couture.ui.status.StatusPanel`: status text.
+- :class:`~couture.ui.status.StatusPanel`: status text;
+- :class:`~couture.ui.loops.DrapeRenderer` and :class:`~couture.ui.loops.Drafter`:
+  the threads that bring the newest drape and the newest design to the screen.
 
 The bus adapter (``nodes/ui/main.py``) sets the ``on_*`` callbacks (what the
 user did → messages) and calls the ``show_*`` / ``set_*`` methods (messages →
-screen). Those only store the newest value and return at once; a render
-thread pushes the newest drape to the browser at most ``max_fps`` times a
-second, so a burst of predictions costs one render and a slow or dead solver
-never blocks the page. A draft thread drafts each new design with
-couture.pattern and plans its handles.
+screen). Those only store the newest value and return at once, so a slow or
+dead solver never blocks the page.
 
     ui = CoutureUI(UIConfig(port=8080))
     ui.on_design_changed = lambda design: ...
@@ -30,7 +29,6 @@ from __future__ import annotations
 
 import logging
 import threading
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
@@ -39,17 +37,17 @@ import numpy as np
 import viser
 
 from couture.mesh import GarmentMesh
-from couture.pattern import draft
 from couture.pattern.drafted import DraftedPattern
 from couture.ui.controls import Controls
 from couture.ui.drape_view import DrapeView
 from couture.ui.exports import SessionPanel
 from couture.ui.geometry import MaterialPoint
 from couture.ui.gestures import Edit, Gestures
-from couture.ui.handles import plan_handles
+from couture.ui.handles import HandleSet
+from couture.ui.loops import Drafter, DrapeRenderer
 from couture.ui.page import PageServer
 from couture.ui.pattern_view import PatternView
-from couture.ui.state import DrapeFrame, LatestSlot
+from couture.ui.state import DrapeFrame
 from couture.ui.status import StatusPanel
 from couture.ui.tools import PatternTools
 from schemas.design import Design
@@ -95,14 +93,10 @@ class CoutureUI:
         self.meshes: dict[str, GarmentMesh] = {}
         """newest mesh per level"""
         self.pattern: DraftedPattern | None = None
-        self.on_screen: DrapeFrame | None = None
         self.selected_solver = "any"
         """solver node whose drapes are shown ('any': every solver's)"""
         self.handles_for: Design | None = None
         """the design the pattern view's handles were planned for"""
-        self.frames_pushed = 0
-        self._drape_slot: LatestSlot[DrapeFrame] = LatestSlot()
-        self._design_slot: LatestSlot[Design] = LatestSlot()
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self.server3d: viser.ViserServer | None = None
@@ -142,12 +136,20 @@ class CoutureUI:
         self.view3d.on_pick = self._pick
         self.view2d.on_handle_drag = self.gestures.handle_drag
         self.view2d.on_click = self.tools.click
+        self.renderer = DrapeRenderer(self.view3d, self.status, self.controls,
+                                      meshes=lambda: list(self.meshes.values()),
+                                      selected_solver=lambda: self.selected_solver, max_fps=c.max_fps)
+        self.drafter = Drafter(show_pattern=self.show_pattern, pattern=lambda: self.pattern,
+                               show_handles=self._show_handles)
         self.page = PageServer(c.host, c.port, self.server3d.get_port(), self.server2d.get_port())
-        self._threads = [threading.Thread(target=self._render_loop, name="couture-render", daemon=True),
-                         threading.Thread(target=self._draft_loop, name="couture-draft", daemon=True)]
+        workers = [(self.renderer.run, "couture-render")]
+        if c.draft_locally:
+            workers.append((self.drafter.run, "couture-draft"))
+        self._threads = [threading.Thread(target=run, args=(self._stop,), name=name, daemon=True)
+                         for run, name in workers]
         for t in self._threads:
             t.start()
-        self._design_slot.put(self.design)
+        self.drafter.slot.put(self.design)
         return self.page.url
 
     def stop(self) -> None:
@@ -171,6 +173,15 @@ class CoutureUI:
     @property
     def page_url(self) -> str:
         return self.page.url
+
+    @property
+    def on_screen(self) -> DrapeFrame | None:
+        """The drape last pushed to the browser."""
+        return self.renderer.on_screen
+
+    @property
+    def frames_pushed(self) -> int:
+        return self.renderer.frames_pushed
 
     @property
     def url3d(self) -> str:
@@ -198,7 +209,7 @@ class CoutureUI:
                    solver: str = "", converged: bool | None = None, diagnosis: str = "", final: bool = True,
                    edit_id: str = "") -> None:
         """Store a drape to render; returns at once (the newest one wins)."""
-        self._drape_slot.put(DrapeFrame(np.asarray(x), level, method, residual, error_estimate, generation, tag,
+        self.renderer.slot.put(DrapeFrame(np.asarray(x), level, method, residual, error_estimate, generation, tag,
                                         solver=solver, converged=converged, diagnosis=diagnosis, final=final,
                                         edit_id=edit_id))
 
@@ -264,7 +275,7 @@ class CoutureUI:
     def _adopt(self, design: Design) -> None:
         self.controls.show_design(design)
         self.view3d.set_fabric(design.fabric)
-        self._design_slot.put(design)
+        self.drafter.slot.put(design)
 
     def _pick(self, mp: MaterialPoint) -> None:
         self.view2d.show_marker(mp)
@@ -276,65 +287,6 @@ class CoutureUI:
         self.view3d.set_field(field)
         self.controls.show_legend(self.view3d.scale)
 
-    # ------------------------------------------------------------------ threads
-
-    def _render_loop(self) -> None:
-        min_dt = 1.0 / max(self.config.max_fps, 1.0)
-        last_push = 0.0
-        last_status = 0.0
-        while not self._stop.is_set():
-            frame = self._drape_slot.take(timeout=0.05)
-            if frame is not None:
-                wait = last_push + min_dt - time.perf_counter()
-                if wait > 0:
-                    time.sleep(wait)
-                    frame = self._drape_slot.take() or frame
-                try:
-                    self._push_frame(frame)
-                except Exception:
-                    log.exception("drawing a drape failed")
-                last_push = time.perf_counter()
-            now = time.perf_counter()
-            if self.status.dirty.is_set() or now - last_status > 0.5:
-                self.status.dirty.clear()
-                last_status = now
-                try:
-                    self.controls.show_solvers(self.status.live_solvers(), self.selected_solver)
-                    self.status.refresh(self.on_screen)
-                except Exception:
-                    log.exception("status refresh failed")
-
-    def _push_frame(self, frame: DrapeFrame) -> None:
-        n = len(frame.x)
-        if self.view3d.mesh is None or self.view3d.mesh.n_vertices != n:
-            mesh = next((m for m in self.meshes.values() if m.n_vertices == n), None)
-            if mesh is None:
-                return  # a drape for a mesh we do not have (yet): drop
-            self.view3d.set_mesh(mesh)
-        self.view3d.set_x(frame.x)
-        self.on_screen = frame
-        self.frames_pushed += 1
-        self.status.show_frame(frame, self.frames_pushed)
-        self.controls.show_legend(self.view3d.scale)
-
-    def _draft_loop(self) -> None:
-        while not self._stop.is_set():
-            design = self._design_slot.take(timeout=0.1)
-            if design is None or not self.config.draft_locally:
-                continue
-            try:
-                pattern = draft(design)
-            except Exception as e:
-                log.warning("drafting the design failed: %s", e)
-                continue
-            self.show_pattern(pattern)
-            if self._design_slot.peek() is not design:
-                continue  # a newer design is waiting: plan its handles instead
-            try:
-                handle_set = plan_handles(design, pattern)
-            except Exception:
-                log.exception("planning the pattern handles failed")
-                continue
-            if self._design_slot.peek() is design and self.pattern is pattern:
-                self.view2d.set_handles(handle_set)
-                self.handles_for = design
+    def _show_handles(self, design: Design, handle_set: HandleSet) -> None:
+        self.view2d.set_handles(handle_set)
+        self.handles_for = design
