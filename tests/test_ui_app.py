@@ -333,6 +333,18 @@ def test_handle_drag_gives_typed_edits_and_commits_on_release(tmp_path):
         assert len({e.edit_id for e in edits}) == 1 and edits[-1].dofs == ("length",) and edits[-1].pick is None
         assert len(designs) == 1 and designs[0].sloper.params["length"] == pytest.approx(length0 + 0.03)
         assert ui.controls.params["length"].value == pytest.approx(length0 + 0.03)  # the slider follows
+        # an edit made by another client (a replay) moves its handle and the outlines, commits nothing
+        from couture.ui.handles import plan_handles
+
+        pattern = draft(ui.design)
+        ui.show_pattern(pattern)
+        ui.view2d.set_handles(plan_handles(ui.design, pattern))
+        i = next(i for i, h in enumerate(ui.view2d.handles) if h.element == "param:length")
+        at_rest = ui.view2d.handle_positions()[i]
+        ui.preview_remote_edit("param:length", np.array([0.05, 0.0]))
+        moved = np.asarray(ui.view2d._handle_node.batched_positions)[i]
+        assert np.linalg.norm(moved[:2] - at_rest[:2]) > 0.03 and len(designs) == 1
+        ui.view2d.restore()
         # an edit couture.pattern refuses is said so; nothing is committed
         gone = Handle("cv:gore0:no-such-segment:0", "gore0", 0, "cv")
         for phase in ("press", "release"):
