@@ -9,7 +9,6 @@ the screen drag to a sloper option and publishes the design it gives.
 from __future__ import annotations
 
 import logging
-import time
 import uuid
 from dataclasses import dataclass
 from typing import Callable
@@ -67,14 +66,11 @@ class Gestures:
         self.design, self.commit = design, commit
         self.restore_pattern, self.say, self.tug_option = restore_pattern, say, tug_option
         self.on_edit = on_edit
-        self.last_edit_stamp = 0.0
-        """Unix time [s] of the latest gesture event"""
         self._edit_id = ""
 
     def _begin(self, phase: Phase) -> str:
         if phase == "press" or not self._edit_id:
             self._edit_id = uuid.uuid4().hex[:12]
-        self.last_edit_stamp = time.time()
         return self._edit_id
 
     def _emit(self, edit: Edit) -> None:

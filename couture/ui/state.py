@@ -31,16 +31,11 @@ class LatestSlot(Generic[T]):
         self._cond = threading.Condition()
         self._value: T | None = None
         self._fresh = False
-        self.n_put = 0
-        self.n_coalesced = 0
 
     def put(self, value: T) -> None:
         with self._cond:
-            if self._fresh:
-                self.n_coalesced += 1
             self._value = value
             self._fresh = True
-            self.n_put += 1
             self._cond.notify_all()
 
     def take(self, timeout: float | None = None) -> T | None:
