@@ -402,3 +402,22 @@ def test_client_framing_follows_the_canvas_until_the_designer_moves_the_camera()
     assert cam.position == (0.3, 0.0, 2.5)
     framing.reframe()  # new content frames again
     assert cam.position == (0.0, 0.0, 1.0)
+
+
+def test_a_tug_edit_becomes_an_edit_message():
+    from couture.ui.gestures import Edit, ScreenPick
+    from nodes.ui.main import edit_msg
+    from schemas.messages import EditMsg, decode, encode
+
+    vp = np.arange(16.0).reshape(4, 4)
+    pick = ScreenPick(vertex=12, tri=40, bary=np.array([0.2, 0.3, 0.5]), view_proj=vp, viewport_px=(640, 480))
+    edit = Edit("e1", "drag", "param:length", ("length",), np.array([30.0, -4.0]), "length", pick)
+    msg = decode(encode(edit_msg(edit, generation=3)), EditMsg)
+    assert (msg.generation, msg.edit_id, msg.phase, msg.element, msg.dofs, msg.param) == (
+        3, "e1", "drag", "param:length", ["length"], "length")
+    assert (msg.picked_vertex, msg.picked_tri, msg.viewport_px) == (12, 40, [640, 480])
+    np.testing.assert_array_equal(msg.d.numpy(), [30.0, -4.0])
+    np.testing.assert_array_equal(msg.view_proj.numpy(), vp)
+    np.testing.assert_array_equal(msg.picked_bary.numpy(), [0.2, 0.3, 0.5])
+    plain = edit_msg(Edit("e2", "press", "cv:gore0:hem:0", ("x", "y"), np.zeros(2)), generation=1)
+    assert plain.picked_vertex == -1 and plain.view_proj is None and plain.viewport_px == []
