@@ -40,9 +40,10 @@ def ui(tmp_path_factory):
 def test_slider_change_is_a_design_change(ui):
     got = []
     ui.on_design_changed = got.append
-    name, h = next(iter(ui.gui_params.items()))
+    name, h = next(iter(ui.controls.params.items()))
     h.value = float(h.value) + 0.01
-    ui._on_param(name)  # what the slider's on_update runs when the browser moves it
+    assert not got, "a value the code assigns is not a design change"
+    ui.controls.param_changed(name)  # what the slider's on_update runs when the browser moves it
     assert got and got[-1].sloper.params[name] == pytest.approx(float(h.value))
     ui.on_design_changed = None
 
@@ -50,8 +51,8 @@ def test_slider_change_is_a_design_change(ui):
 def test_fabric_preset_sets_table1_values(ui):
     got = []
     ui.on_design_changed = got.append
-    ui.gui_preset.value = "stiff"
-    ui._on_preset()
+    ui.controls.preset.value = "stiff"
+    ui.controls.preset_chosen()
     f = got[-1].fabric
     assert (f.name, f.bend_stiffness, f.stretch_stiffness, f.area_density) == ("stiff", 3e-4, 2000.0, 0.08)
     ui.on_design_changed = None
@@ -70,22 +71,22 @@ def test_drapes_are_coalesced_and_newest_wins(ui):
 def test_dead_node_is_shown_and_last_drape_stays(ui):
     ui.set_live_nodes({"solver-kinetic": True})
     ui.set_node_status("solver-kinetic", kind="solver", state="running", rates={"drape": 2.0})
-    assert wait_for(lambda: "solver-kinetic" in ui.gui_solver.options)
+    assert wait_for(lambda: "solver-kinetic" in ui.controls.solver.options)
     on_screen = ui.on_screen
     ui.set_live_nodes({"solver-kinetic": False})
-    assert wait_for(lambda: "DEAD" in ui.gui_status.content)
-    assert ui.on_screen is on_screen and "solver-kinetic" not in ui.gui_solver.options
+    assert wait_for(lambda: "DEAD" in ui.status.table.content)
+    assert ui.on_screen is on_screen and "solver-kinetic" not in ui.controls.solver.options
 
 
 def test_colour_maps_draw_bands_with_legend(ui):
     for field in ("strain", "stress"):
-        ui.gui_field.value = field
-        ui._on_field()
-        assert ui.view3d.scale is not None and "background:rgb" in ui.gui_legend.content
+        ui.controls.field.value = field
+        ui.controls.field_chosen()
+        assert ui.view3d.scale is not None and "background:rgb" in ui.controls.legend.content
         assert any(h.visible for h in ui.view3d.bands) and not ui.view3d.plain.visible
-    ui.gui_field.value = "none"
-    ui._on_field()
-    assert ui.view3d.plain.visible and ui.gui_legend.content == ""
+    ui.controls.field.value = "none"
+    ui.controls.field_chosen()
+    assert ui.view3d.plain.visible and ui.controls.legend.content == ""
 
 
 def test_exports_reimport(ui):
@@ -127,23 +128,23 @@ def test_tools_make_strokes_the_pattern_model_accepts(tmp_path):
         gore = pat.panels[0]
         hem = next(s for s in gore.segments if s.name == "hem")
         p_hem = ui.view2d.display(gore.name, gore.outline[(hem.start + hem.stop) // 2])
-        ui.arm_tool("dart")
-        ui._on_pattern_click(p_hem + [0.0, 0.001], gore.name)
+        ui.tools.arm("dart")
+        ui.tools.click(p_hem + [0.0, 0.001], gore.name)
         dart = got[-1].strokes[-1]
         assert (dart.kind, dart.panel, dart.params["segment"]) == ("dart", gore.name, "hem")
         drafted = draft(got[-1])
         assert len(drafted.panel(gore.name).outline) > len(gore.outline)  # the dart is in the outline
-        ui.arm_tool("seam")
-        ui._on_pattern_click(p_hem, gore.name)
+        ui.tools.arm("seam")
+        ui.tools.click(p_hem, gore.name)
         assert len(got) == 1  # the first pick alone changes nothing
         other = pat.panels[1]
         oh = next(s for s in other.segments if s.name == "hem")
-        ui._on_pattern_click(ui.view2d.display(other.name, other.outline[(oh.start + oh.stop) // 2]), other.name)
+        ui.tools.click(ui.view2d.display(other.name, other.outline[(oh.start + oh.stop) // 2]), other.name)
         seam = got[-1].strokes[-1]
         assert seam.kind == "seam" and {seam.params["a_panel"], seam.params["b_panel"]} == {gore.name, other.name}
         # a picked pattern point without a tool is located on the mesh
-        ui.arm_tool(None)
-        assert ui._armed is None
+        ui.tools.arm(None)
+        assert ui.tools.armed is None
     finally:
         ui.stop()
 
@@ -179,9 +180,9 @@ def test_bus_adapter_roundtrip(tmp_path):
             drape_pub.put(DrapeMsg(level="fine", x=mesh.x0 + 0.01, residual=2e-4, solver="kinetic", method="kinetic"))
             assert wait_for(lambda: ui.on_screen is not None and ui.on_screen.method == "kinetic")
             np.testing.assert_allclose(ui.view3d.x, mesh.x0 + 0.01)
-            name = next(iter(ui.gui_params))
-            ui.gui_params[name].value = float(ui.gui_params[name].value) + 0.01
-            ui._on_param(name)
+            name = next(iter(ui.controls.params))
+            ui.controls.params[name].value = float(ui.controls.params[name].value) + 0.01
+            ui.controls.param_changed(name)
             assert wait_for(lambda: any(isinstance(m, PatternMsg) and m.source == "ui" for m in patterns))
             from couture.ui.handles import Handle
 
@@ -189,9 +190,9 @@ def test_bus_adapter_roundtrip(tmp_path):
             h = Handle("param:length", "gore0", 0, "param")
             length0 = float(ui.design.sloper.params.get("length", 0.60))
             n_patterns = len(patterns)
-            ui._on_handle_drag("press", h, np.zeros(2))
-            ui._on_handle_drag("drag", h, np.array([0.01, 0.0]))
-            ui._on_handle_drag("release", h, np.array([0.02, 0.0]))
+            ui.gestures.handle_drag("press", h, np.zeros(2))
+            ui.gestures.handle_drag("drag", h, np.array([0.01, 0.0]))
+            ui.gestures.handle_drag("release", h, np.array([0.02, 0.0]))
             assert wait_for(lambda: len(edits) == 3)
             assert [e.phase for e in edits] == ["press", "drag", "release"]
             assert isinstance(edits[-1], EditMsg) and edits[-1].element == h.element
@@ -261,8 +262,8 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
             off = "Predictions are off"
             with Node("sensitivity", BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[]),
                       kind="sensitivity", install_signals=False):
-                assert wait_for(lambda: adapter.live.get("sensitivity") and not any(off in n for n in ui.notes), 20)
-            assert wait_for(lambda: any(off in n for n in ui.notes), 20), ui.notes
+                assert wait_for(lambda: adapter.live.get("sensitivity") and not any(off in n for n in ui.status.notes), 20)
+            assert wait_for(lambda: any(off in n for n in ui.status.notes), 20), ui.status.notes
 
             # record toggle: a recorder process joins this bus and writes an MCAP file
             ui.on_record(True)  # what the record checkbox calls
@@ -273,7 +274,7 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
                 drape_pub.put(drape("solver-newton", 0.001 * k, 10 + k))
             time.sleep(1.0)
             ui.on_record(False)
-            assert adapter.recorder is None and "recorded" in ui.gui_record_note.content
+            assert adapter.recorder is None and "recorded" in ui.session.record_note.content
             with open(path, "rb") as f:
                 reader = make_reader(f)
                 schemas = {s.name for s in reader.get_summary().schemas.values()}
@@ -285,3 +286,138 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
         if adapter is not None:
             adapter.close()
         ui.stop()
+
+
+def test_same_mesh_resent_keeps_the_drape_on_screen(ui):
+    """A mesh message equal to the one on screen (the remesher re-sends it with
+    Ψ on a press) neither re-uploads triangles nor resets the drape to x0."""
+    import dataclasses
+
+    mesh = ui.demo_mesh
+    draped = mesh.x0 + [0.0, -0.01, 0.02]
+    ui.show_drape(draped, "fine", "demo", tag="draped")
+    assert wait_for(lambda: ui.on_screen is not None and ui.on_screen.tag == "draped")
+    uploads = ui.view3d.mesh_uploads
+    resent = dataclasses.replace(mesh, X=mesh.X.copy(), tris=mesh.tris.copy(), x0=mesh.x0.copy(), generation=7)
+    ui.show_mesh(resent)
+    assert ui.view3d.mesh_uploads == uploads
+    np.testing.assert_array_equal(ui.view3d.x, draped)
+    assert ui.view3d.mesh is resent
+    # a different mesh is a new one: uploaded, shown at its initial positions
+    other = dataclasses.replace(mesh, X=mesh.X * 1.01, x0=mesh.x0 + 0.1)
+    ui.show_mesh(other)
+    assert ui.view3d.mesh_uploads == uploads + 1
+    np.testing.assert_allclose(ui.view3d.x, other.x0)
+    ui.show_mesh(mesh)
+    ui.show_drape(mesh.x0, "fine", "demo", tag="restored")
+    assert wait_for(lambda: ui.on_screen is not None and ui.on_screen.tag == "restored")
+
+
+def test_handle_drag_gives_typed_edits_and_commits_on_release(tmp_path):
+    from couture.pattern import draft
+    from couture.ui.gestures import Edit
+    from couture.ui.handles import Handle
+    from schemas.design import Design
+
+    ui = CoutureUI(UIConfig(port=free_port(), export_dir=tmp_path, show_body=False, draft_locally=False))
+    ui.start()
+    try:
+        ui.show_pattern(draft(Design()))
+        edits, designs = [], []
+        ui.on_edit, ui.on_design_changed = edits.append, designs.append
+        h = Handle("param:length", "gore0", 0, "param")
+        length0 = float(ui.design.sloper.params.get("length", 0.60))
+        for phase, d in (("press", 0.0), ("drag", 0.01), ("release", 0.03)):
+            ui.gestures.handle_drag(phase, h, np.array([d, 0.0]))
+        assert all(isinstance(e, Edit) for e in edits) and [e.phase for e in edits] == ["press", "drag", "release"]
+        assert len({e.edit_id for e in edits}) == 1 and edits[-1].dofs == ("length",) and edits[-1].pick is None
+        assert len(designs) == 1 and designs[0].sloper.params["length"] == pytest.approx(length0 + 0.03)
+        assert ui.controls.params["length"].value == pytest.approx(length0 + 0.03)  # the slider follows
+        # an edit made by another client (a replay) moves its handle and the outlines, commits nothing
+        from couture.ui.handles import plan_handles
+
+        pattern = draft(ui.design)
+        ui.show_pattern(pattern)
+        ui.view2d.set_handles(plan_handles(ui.design, pattern))
+        i = next(i for i, h in enumerate(ui.view2d.handles) if h.element == "param:length")
+        at_rest = ui.view2d.handle_positions()[i]
+        ui.preview_remote_edit("param:length", np.array([0.05, 0.0]))
+        moved = np.asarray(ui.view2d._handle_node.batched_positions)[i]
+        assert np.linalg.norm(moved[:2] - at_rest[:2]) > 0.03 and len(designs) == 1
+        ui.view2d.restore()
+        # an edit couture.pattern refuses is said so; nothing is committed
+        gone = Handle("cv:gore0:no-such-segment:0", "gore0", 0, "cv")
+        for phase in ("press", "release"):
+            ui.gestures.handle_drag(phase, gone, np.array([0.01, 0.0]))
+        assert len(designs) == 1 and "rejected" in ui.tools.help.content
+    finally:
+        ui.stop()
+
+
+def test_fabric_presets_are_the_design_fabric():
+    from couture.ui.state import FABRIC_PRESETS
+    from schemas.design import Fabric
+
+    assert all(isinstance(f, Fabric) and f.name == name for name, f in FABRIC_PRESETS.items())
+
+
+def test_client_framing_follows_the_canvas_until_the_designer_moves_the_camera():
+    """Each browser is framed for its own canvas shape; a resize reframes it,
+    also when the browser's report crossed the framing on its way; once the
+    designer has moved the camera, a resize leaves it alone."""
+    import contextlib
+    from types import SimpleNamespace
+
+    from couture.ui.widgets import ClientFraming
+
+    class Camera:
+        def __init__(self):
+            self.image_width = self.image_height = 0
+            self.position, self.look_at, self.up_direction = (0.0, 0.0, 9.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0)
+            self.callbacks = []
+
+        def on_update(self, cb):
+            self.callbacks.append(cb)
+
+        def report(self, width, height, position=None):
+            self.image_width, self.image_height = width, height
+            if position is not None:
+                self.position = position
+            for cb in self.callbacks:
+                cb(self)
+
+    cam = Camera()
+    client = SimpleNamespace(client_id=1, camera=cam, atomic=contextlib.nullcontext)
+    connected = []
+    server = SimpleNamespace(on_client_connect=connected.append, get_clients=lambda: {1: client},
+                             initial_camera=SimpleNamespace(position=(0.0, 0.0, 9.0)))
+    framing = ClientFraming(server, lambda aspect: ((0.0, 0.0, 1.0 / aspect), (0.0, 0.0, 0.0)))
+    connected[0](client)
+    cam.report(800, 800)
+    assert wait_for(lambda: cam.position == (0.0, 0.0, 1.0))
+    cam.report(400, 800, position=(0.0, 0.0, 9.0))  # a stale report: still at the initial camera
+    assert cam.position == (0.0, 0.0, 2.0)
+    cam.report(400, 800, position=(0.3, 0.0, 2.5))  # the designer orbits
+    cam.report(800, 800)
+    assert cam.position == (0.3, 0.0, 2.5)
+    framing.reframe()  # new content frames again
+    assert cam.position == (0.0, 0.0, 1.0)
+
+
+def test_a_tug_edit_becomes_an_edit_message():
+    from couture.ui.gestures import Edit, ScreenPick
+    from nodes.ui.main import edit_msg
+    from schemas.messages import EditMsg, decode, encode
+
+    vp = np.arange(16.0).reshape(4, 4)
+    pick = ScreenPick(vertex=12, tri=40, bary=np.array([0.2, 0.3, 0.5]), view_proj=vp, viewport_px=(640, 480))
+    edit = Edit("e1", "drag", "param:length", ("length",), np.array([30.0, -4.0]), "length", pick)
+    msg = decode(encode(edit_msg(edit, generation=3)), EditMsg)
+    assert (msg.generation, msg.edit_id, msg.phase, msg.element, msg.dofs, msg.param) == (
+        3, "e1", "drag", "param:length", ["length"], "length")
+    assert (msg.picked_vertex, msg.picked_tri, msg.viewport_px) == (12, 40, [640, 480])
+    np.testing.assert_array_equal(msg.d.numpy(), [30.0, -4.0])
+    np.testing.assert_array_equal(msg.view_proj.numpy(), vp)
+    np.testing.assert_array_equal(msg.picked_bary.numpy(), [0.2, 0.3, 0.5])
+    plain = edit_msg(Edit("e2", "press", "cv:gore0:hem:0", ("x", "y"), np.zeros(2)), generation=1)
+    assert plain.picked_vertex == -1 and plain.view_proj is None and plain.viewport_px == []

@@ -103,20 +103,20 @@ def test_drape_tug_yields_edits_with_camera(session):
         n0 = len(events["edit"])
         _drag(page, px, px + np.array([40.0, 0.0]))
         try:
-            wait_until(lambda n0=n0: any(e["phase"] == "release" for e in events["edit"][n0:]), 30, page)
+            wait_until(lambda n0=n0: any(e.phase == "release" for e in events["edit"][n0:]), 30, page)
             break
         except TimeoutError:
-            tries.append([e["phase"] for e in events["edit"][n0:]])
+            tries.append([e.phase for e in events["edit"][n0:]])
             page.wait_for_timeout(1000)
     else:
         pytest.fail(f"no tug release reached the server in 3 drags; phases seen per try: {tries}")
     got = events["edit"][n0:]
-    assert got[0]["phase"] == "press" and got[-1]["phase"] == "release"
+    assert got[0].phase == "press" and got[-1].phase == "release"
     e = got[-1]
-    assert e["picked_vertex"] >= 0 and np.asarray(e["view_proj"]).shape == (4, 4)
-    assert e["d"][0] > 10  # pixels to the right
+    assert e.pick is not None and e.pick.vertex >= 0 and e.pick.view_proj.shape == (4, 4)
+    assert e.d[0] > 10  # pixels to the right
     # the picked vertex projects near where the pointer went down
-    vp = np.asarray(e["view_proj"]) @ np.append(x[e["picked_vertex"]], 1.0)
+    vp = e.pick.view_proj @ np.append(x[e.pick.vertex], 1.0)
     ndc = vp[:2] / vp[3]
-    pix = np.array([(ndc[0] + 1) / 2 * e["viewport_px"][0], (1 - ndc[1]) / 2 * e["viewport_px"][1]])
+    pix = np.array([(ndc[0] + 1) / 2 * e.pick.viewport_px[0], (1 - ndc[1]) / 2 * e.pick.viewport_px[1]])
     assert np.linalg.norm(pix - (px - _iframe_origin(page, "#view3d"))) < 25

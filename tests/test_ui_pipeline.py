@@ -7,7 +7,7 @@ Every wait is on bus state (a pattern, an edit, a drape of a generation, a
 node's counters) or on what the page shows (the status line, screenshots
 that change), never a fixed sleep: software WebGL on two loaded cores is slow.
 
-Must-shows (issue 6): (a) the garment is on the mannequin in the browser;
+Must-shows: (a) the garment is on the mannequin in the browser;
 (b) a sloper slider change publishes a pattern and a new drape is drawn;
 (c) a control-point drag in the pattern view sends press/drag/release,
 predictions arrive during the drag for that gesture, and after release the
@@ -91,9 +91,11 @@ def _garment_pixels(png: bytes) -> int:
 
 
 def _view3d_shot(page, path=None) -> bytes:
-    # the left part of the 3D frame: the control panel covers its right side
+    # the 3D canvas: the frame less the control panel docked at its right
+    from couture.ui.app import PANEL_WIDTH_3D
+
     box = page.locator("#view3d").bounding_box()
-    clip = {"x": box["x"], "y": box["y"], "width": box["width"] * 0.6, "height": box["height"]}
+    clip = {"x": box["x"], "y": box["y"], "width": box["width"] - PANEL_WIDTH_3D, "height": box["height"]}
     return page.screenshot(clip=clip, path=str(path) if path else None)
 
 
@@ -200,25 +202,23 @@ def _canvas_box(page, iframe: str) -> dict:
 
 
 def _pattern_pixels(page, design, element: str) -> np.ndarray:
-    """Where a handle is in the page: the pattern view's camera (PatternView.frame_camera)
-    looks straight down at the laid-out pattern's centre with a 40° vertical field of view."""
+    """Where a handle is in the page: the pattern view's camera looks straight
+    down at the laid-out pattern, framed to its canvas (pattern_view.fit_camera)."""
     from couture.pattern import draft
     from couture.ui.handles import plan_handles
-    from couture.ui.pattern_view import layout_offsets
+    from couture.ui.pattern_view import CAMERA_FOV, fit_camera, layout_offsets
 
     pattern = draft(design)
     h = next(h for h in plan_handles(design, pattern).handles if h.element == element)
     off = layout_offsets(pattern)
     pts = np.concatenate([p.outline + off[p.name] for p in pattern.panels])
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    c = 0.5 * (lo + hi)
-    span = float(max(hi[0] - lo[0], hi[1] - lo[1], 0.2))
-    dist = 0.6 * span / np.tan(np.deg2rad(20.0)) + 0.2 - 0.003
-    p = h.rest_position(pattern.panel(h.panel)) + off[h.panel]
     box = _canvas_box(page, "#pattern")
-    f = 0.5 * box["height"] / np.tan(np.deg2rad(20.0))
-    return np.array([box["x"] + 0.5 * box["width"] + f * (p[0] - c[0]) / dist,
-                     box["y"] + 0.5 * box["height"] - f * (p[1] - c[1]) / dist])
+    (cx, cy, dist), _ = fit_camera(pts.min(axis=0), pts.max(axis=0), box["width"] / box["height"])
+    dist -= 0.003  # the handles sit 3 mm above the pattern plane
+    p = h.rest_position(pattern.panel(h.panel)) + off[h.panel]
+    f = 0.5 * box["height"] / np.tan(0.5 * CAMERA_FOV)
+    return np.array([box["x"] + 0.5 * box["width"] + f * (p[0] - cx) / dist,
+                     box["y"] + 0.5 * box["height"] - f * (p[1] - cy) / dist])
 
 
 def test_c_control_point_drag_predicts_then_solver_commits(live):
@@ -231,7 +231,7 @@ def test_c_control_point_drag_predicts_then_solver_commits(live):
     element = "cv:gore0:hem:0"
     start = _pattern_pixels(page, design, element)
     press = None
-    for _attempt in range(3):  # the page draws the handles a moment after the pattern
+    for _ in range(3):  # the page draws the handles a moment after the pattern
         n_edits = len(tap.edits)
         page.mouse.move(*start)
         page.mouse.down()
@@ -239,8 +239,7 @@ def test_c_control_point_drag_predicts_then_solver_commits(live):
             page.mouse.move(start[0], start[1] + 4 * k)
             page.wait_for_timeout(60)
         try:
-            press = wait_until(lambda n_edits=n_edits: next((e for e in tap.edits[n_edits:] if e.phase == "press"), None),
-                               15, page)
+            press = wait_until(lambda n=n_edits: next((e for e in tap.edits[n:] if e.phase == "press"), None), 15, page)
             break
         except TimeoutError:
             page.mouse.up()

@@ -105,9 +105,8 @@ def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, 
                 return d ? c.getParameter(d.UNMASKED_RENDERER_WEBGL) : 'unknown'; }""")
             out["webgl_renderer"] = renderer
             for field in fields:
-                # the handle has a setter at run time; its stub types value as read-only
-                ui.gui_field.value = field  # type: ignore[misc]
-                ui._on_field()
+                ui.controls.field.value = field
+                ui.controls.field_chosen()
                 page.wait_for_timeout(500)
                 # -- stream
                 page.evaluate("() => { window.__couture.frames = []; }")
@@ -132,14 +131,14 @@ def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, 
                 front = np.flatnonzero(np.abs(mesh.X[:, 1] - 0.25) < 0.03)
                 v = int(front[np.argmax(x0[front, 2])])
                 px = cam.to_pixels(x0[v][None])[0]
-                edits: list[dict] = []
+                edits: list = []
 
-                def on_edit(e: dict, edits: list[dict] = edits, v: int = v) -> None:
+                def on_edit(e, edits: list = edits, v: int = v) -> None:
                     t = time.time() * 1000
                     edits.append(e)
-                    dx = np.array([e["d"][0], -e["d"][1], 0.0]) * 0.001
-                    ui.show_drape(tugged(x0, max(e.get("picked_vertex", v), 0), dx), "predicted", "bench",
-                                  error_estimate=0.0, tag={"t": t, "phase": e["phase"]})
+                    dx = np.array([e.d[0], -e.d[1], 0.0]) * 0.001
+                    ui.show_drape(tugged(x0, e.pick.vertex if e.pick else v, dx), "predicted", "bench",
+                                  error_estimate=0.0, tag={"t": t, "phase": e.phase})
 
                 ui.on_edit = on_edit
                 page.evaluate("() => { window.__couture.frames = []; }")
@@ -153,7 +152,7 @@ def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, 
                     page.wait_for_timeout(1000 / 60)
                 page.mouse.up()
                 t1 = time.time() * 1000
-                wait_until(lambda edits=edits: any(e["phase"] == "release" for e in edits), 20, page)
+                wait_until(lambda edits=edits: any(e.phase == "release" for e in edits), 20, page)
                 page.wait_for_timeout(1500)
                 ui.on_edit = None
                 frames = page.evaluate("() => window.__couture.frames")

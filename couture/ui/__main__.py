@@ -14,12 +14,14 @@ import numpy as np
 
 from couture.ui import CoutureUI, UIConfig
 from couture.ui.demo import demo_sheet, tugged
+from couture.ui.gestures import Edit
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m couture.ui", description=__doc__)
     ap.add_argument("--host", default="127.0.0.1")
-    ap.add_argument("--port", type=int, default=8080, help="3D view; pattern view +1, page +2")
+    ap.add_argument("--port", type=int, default=8080,
+                    help="the page; the 3D view is port + 1, the pattern view port + 2")
     ap.add_argument("--vertices", type=int, default=3000, help="demo sheet size")
     args = ap.parse_args(argv)
 
@@ -35,11 +37,11 @@ def main(argv: list[str] | None = None) -> int:
         ui.show_drape(mesh.x0, "fine", "demo", residual=float("nan"))
         x = mesh.x0
 
-        def on_edit(edit: dict) -> None:
-            print("edit", edit["phase"], edit["element"], np.round(edit["d"], 4).tolist(), flush=True)
-            if edit.get("picked_vertex", -1) >= 0:
-                dx = np.array([edit["d"][0], -edit["d"][1], 0.0]) * 0.0015  # px -> m, screen y down
-                ui.show_drape(tugged(x, edit["picked_vertex"], dx), "predicted", "demo", error_estimate=0.0)
+        def on_edit(edit: Edit) -> None:
+            print("edit", edit.phase, edit.element, np.round(edit.d, 4).tolist(), flush=True)
+            if edit.pick is not None:
+                dx = np.array([edit.d[0], -edit.d[1], 0.0]) * 0.0015  # px -> m, screen y down
+                ui.show_drape(tugged(x, edit.pick.vertex, dx), "predicted", "demo", error_estimate=0.0)
 
         ui.on_edit = on_edit
         ui.on_design_changed = lambda d: print("design", d.sloper.kind, d.sloper.params, flush=True)

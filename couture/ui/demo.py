@@ -1,5 +1,5 @@
 """A stand-in garment for running the UI without the pipeline (tests, the
-benchmark, ``python -m couture.ui --demo``): a rectangular sheet
+benchmark, ``python -m couture.ui``): a rectangular sheet
 (``couture.mesh.grid_sheet``) wrapped as a flared tube skirt around the
 mannequin's hips, its pattern (one panel, four segments) and a helper that
 deforms it the way a drag would, so predictions can be faked."""

@@ -23,11 +23,16 @@ import viser
 from couture.mesh import GarmentMesh
 from couture.ui import colormaps
 from couture.ui.geometry import CameraState, MaterialPoint, closest_material_point, ray_hit
+from couture.ui.state import VISER_DRAG_PHASE, Phase
+from couture.ui.widgets import ClientFraming, fit_distance
+from schemas.design import Fabric
 
 MANNEQUIN_OBJ = Path(__file__).resolve().parents[1] / "assets" / "mannequin" / "body_a_pose.obj"
 
 DRAPE_COLOR = (214, 120, 92)
 BODY_COLOR = (205, 200, 195)
+CAMERA_FOV = float(np.deg2rad(30.0))
+"""vertical field of view of the 3D view [rad]"""
 _EMPTY_V = np.zeros((3, 3), np.float32)
 _EMPTY_F = np.array([[0, 1, 2]], np.uint32)
 
@@ -40,7 +45,13 @@ def load_body(path: Path = MANNEQUIN_OBJ) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
 
 
-TugCallback = Callable[[str, MaterialPoint, int, tuple[float, float], tuple[float, float], CameraState | None], None]
+def same_geometry(a: GarmentMesh, b: GarmentMesh) -> bool:
+    """Same rest positions and triangles (the same mesh, possibly re-sent)."""
+    return (a.X.shape == b.X.shape and a.tris.shape == b.tris.shape
+            and np.array_equal(a.tris, b.tris) and np.array_equal(a.X, b.X))
+
+
+TugCallback = Callable[[Phase, MaterialPoint, int, tuple[float, float], tuple[float, float], CameraState | None], None]
 """cb(phase 'press'|'drag'|'release', material point, picked vertex,
 press screen position [px], current screen position [px], camera)"""
 
@@ -55,23 +66,29 @@ class DrapeView:
         self.x: np.ndarray | None = None
         self.field = "none"
         self.scale: colormaps.ColorScale | None = None
-        self.fabric_stretch = 20.0
-        self.fabric_poisson = 0.3
+        self.fabric = Fabric()
+        """material of the stress map"""
+        self.mesh_uploads = 0
+        """how often triangles went to the browser (a new mesh)"""
         self.on_tug: TugCallback | None = None
         self.on_pick: Callable[[MaterialPoint], None] | None = None
         self._lock = threading.RLock()
         self._tug: dict | None = None
 
         server.scene.set_up_direction("+y")
-        server.initial_camera.position = (0.0, 0.35, 2.6)
-        server.initial_camera.look_at = (0.0, 0.15, 0.0)
-        server.initial_camera.up = (0.0, 1.0, 0.0)
         self.body_distance: colormaps.BodyDistance | None = None
+        self.body_vertices, self.body_faces = load_body()
         if show_body:
-            bv, bf = load_body()
-            self.body_vertices, self.body_faces = bv, bf
-            server.scene.add_mesh_simple("/body", bv.astype(np.float32), bf.astype(np.uint32),
-                                         color=BODY_COLOR, side="front", cast_shadow=False, receive_shadow=False)
+            server.scene.add_mesh_simple("/body", self.body_vertices.astype(np.float32),
+                                         self.body_faces.astype(np.uint32), color=BODY_COLOR, side="front",
+                                         cast_shadow=False, receive_shadow=False)
+        # the mannequin fills the canvas's height (or its width, on a wide canvas)
+        self.body_box = (self.body_vertices.min(axis=0), self.body_vertices.max(axis=0))
+        ic = server.initial_camera
+        ic.fov = CAMERA_FOV
+        ic.position, ic.look_at = self.fit_body(0.5)
+        ic.up = (0.0, 1.0, 0.0)
+        self.framing = ClientFraming(server, self.fit_body)
         self.plain = server.scene.add_mesh_simple("/drape/plain", _EMPTY_V, _EMPTY_F, color=DRAPE_COLOR,
                                                   side="double", visible=False, cast_shadow=False,
                                                   receive_shadow=False)
@@ -88,20 +105,45 @@ class DrapeView:
             h.on_drag(self._on_drag)
             h.on_click(self._on_click)
 
+    def fit_body(self, aspect: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """Camera (position, look_at) [m] of a front view in which the
+        mannequin's bounding box spans 95 % of a canvas of this aspect (its
+        height, or on a narrow canvas the span of its arms)."""
+        lo, hi = self.body_box
+        c = 0.5 * (lo + hi)
+        dist = fit_distance(0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), CAMERA_FOV, aspect,
+                            fill=0.95) + (hi[2] - c[2])
+        return (float(c[0]), float(c[1]), float(c[2] + dist)), (float(c[0]), float(c[1]), float(c[2]))
+
     # -- data in ----------------------------------------------------------------
 
     def set_mesh(self, mesh: GarmentMesh) -> None:
+        """Show a mesh at its initial positions x0, unless it is the mesh on
+        screen (same rest positions and triangles): then nothing is uploaded
+        and the drape on screen stays."""
         with self._lock:
+            if self.mesh is not None and same_geometry(self.mesh, mesh):
+                self.mesh = mesh
+                return
             self.mesh = mesh
             self.x = np.asarray(mesh.x0, np.float64)
             self._band_tris = [None] * self.n_bands
             self.plain.faces = mesh.tris.astype(np.uint32)
+            self.mesh_uploads += 1
             self._draw()
+
+    def set_fabric(self, fabric: Fabric) -> None:
+        with self._lock:
+            if fabric == self.fabric:
+                return
+            self.fabric = fabric
+            if self.field == "stress":
+                self._draw()
 
     def set_field(self, field: str) -> None:
         with self._lock:
             self.field = field
-            if field == "pressure" and self.body_distance is None and hasattr(self, "body_vertices"):
+            if field == "pressure" and self.body_distance is None:
                 self.body_distance = colormaps.BodyDistance(self.body_vertices, self.body_faces)
             self._band_tris = [None] * self.n_bands
             self._draw()
@@ -119,7 +161,8 @@ class DrapeView:
         if self.mesh is None or self.x is None:
             return None
         return colormaps.field_values(self.field, self.mesh.X, self.x, self.mesh.tris,
-                                      stretch_stiffness=self.fabric_stretch, poisson_ratio=self.fabric_poisson,
+                                      stretch_stiffness=self.fabric.stretch_stiffness,
+                                      poisson_ratio=self.fabric.poisson_ratio,
                                       body_distance=self.body_distance)
 
     def _draw(self) -> None:
@@ -189,7 +232,7 @@ class DrapeView:
         with self._lock:
             if self.mesh is None or self.x is None:
                 return
-            phase = {"start": "press", "update": "drag", "end": "release"}[event.phase]
+            phase = VISER_DRAG_PHASE[event.phase]
             if phase == "press":
                 mp = closest_material_point(self.x, self.mesh.tris, event.start_position)
                 try:

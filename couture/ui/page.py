@@ -13,7 +13,10 @@ PAGE = """<!doctype html>
  html, body {{ margin: 0; height: 100%; font-family: sans-serif; }}
  #bar {{ height: 28px; line-height: 28px; padding: 0 10px; background: #2b2b2b; color: #eee; font-size: 13px; }}
  #views {{ display: flex; height: calc(100% - 28px); }}
- iframe {{ flex: 1 1 50%; border: 0; height: 100%; }}
+ iframe {{ border: 0; height: 100%; }}
+ /* the mannequin is taller than wide, the laid-out pattern wider than tall */
+ #view3d {{ flex: 1 1 55%; }}
+ #pattern {{ flex: 1 1 45%; }}
  #pattern {{ border-left: 2px solid #888; }}
 </style></head>
 <body>

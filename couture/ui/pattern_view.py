@@ -1,11 +1,13 @@
 """The flat pattern view: panels in the z = 0 plane, seen from above (+z,
 looking down -z, +y up on screen), on its own viser server.
 
-Drawn: panel fills and outlines, seam segments colour-matched pairwise, dart
-strokes, mirrored outlines of panels marked symmetric, the mesh (optional),
-draggable handles, one per editable element of the design (sloper options,
-curve control points, darts: see :mod:`couture.ui.handles`), and the marker
-of the material point picked in either view.
+Drawn from the drafted pattern (couture.pattern), nothing recomputed here:
+panel fills, outlines and holes, seam segments colour-matched pairwise, dart
+legs (the segments couture.pattern names ``dart:<id>:left|right``), the mesh
+(optional), draggable handles, one per editable element of the design
+(sloper options, curve control points, darts: see :mod:`couture.ui.handles`)
+with their names shown for the selected handle only, and the marker of the
+material point picked in either view.
 
 Panels that overlap in their own coordinates are laid out side by side for
 display (a per-panel offset); every pointer delta is a difference and so is
@@ -15,16 +17,17 @@ unaffected, and picking subtracts the offset before the mesh lookup.
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 import viser
 
 from couture.mesh import GarmentMesh
-from couture.pattern.drafted import DraftedPattern, Panel
+from couture.pattern.drafted import DraftedPattern, Panel, Segment
 from couture.ui.geometry import MaterialPoint, locate_in_pattern
 from couture.ui.handles import Handle, HandleSet
+from couture.ui.state import VISER_DRAG_PHASE, Phase
+from couture.ui.widgets import ClientFraming, fit_distance
 
 SEAM_PALETTE = np.array([
     (228, 26, 28), (55, 126, 184), (77, 175, 74), (152, 78, 163), (255, 127, 0),
@@ -34,20 +37,34 @@ PANEL_FILL = (236, 228, 214)
 OUTLINE = (40, 40, 40)
 HANDLE_COLORS = {"param": (20, 90, 200), "cv": (20, 160, 120), "dart": (200, 0, 120), "hole": (200, 0, 120)}
 HANDLE_ACTIVE = (240, 160, 0)
+DART_COLOR = (200, 0, 120)
+HANDLE_RADIUS = 0.012
+"""[m]"""
+CAMERA_FOV = float(np.deg2rad(40.0))
+"""vertical field of view of the pattern view [rad]"""
 
 
 def segment_indices(panel: Panel, seg_name: str) -> np.ndarray:
+    """Indices of a segment's vertices in its polyline (outline or hole)."""
     seg = next(s for s in panel.segments if s.name == seg_name)
-    k = len(panel.outline)
+    k = len(polyline_of(panel, seg))
     n = (seg.stop - seg.start) % k
     return (seg.start + np.arange(n + 1)) % k
 
 
-def mirror_about(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Reflect 2D points across the line through a and b."""
-    d = (b - a) / max(np.linalg.norm(b - a), 1e-12)
-    r = points - a
-    return a + 2 * np.outer(r @ d, d) - r
+def polyline_of(panel: Panel, seg: Segment) -> np.ndarray:
+    """The polyline a segment lies on: the outline, or its hole."""
+    return panel.outline if seg.hole < 0 else panel.holes[seg.hole]
+
+
+def segment_points(panel: Panel, seg_name: str) -> np.ndarray:
+    """A segment's vertices [m], shape (k, 2)."""
+    seg = next(s for s in panel.segments if s.name == seg_name)
+    return polyline_of(panel, seg)[segment_indices(panel, seg_name)]
+
+
+def is_dart_leg(seg_name: str) -> bool:
+    return seg_name.startswith("dart:")
 
 
 def layout_offsets(pattern: DraftedPattern, gap: float = 0.08) -> dict[str, np.ndarray]:
@@ -69,6 +86,16 @@ def layout_offsets(pattern: DraftedPattern, gap: float = 0.08) -> dict[str, np.n
     return out
 
 
+def fit_camera(lo: np.ndarray, hi: np.ndarray, aspect: float) -> tuple[tuple[float, float, float],
+                                                                      tuple[float, float, float]]:
+    """Camera (position, look_at) [m] looking straight down (-z) at the box
+    lo..hi [m] of the pattern plane, the box spanning 90 % of a canvas of this
+    aspect (width / height) in its tighter direction; vertical field of view CAMERA_FOV."""
+    c = 0.5 * (np.asarray(lo) + np.asarray(hi))
+    dist = fit_distance(0.5 * float(hi[0] - lo[0]), 0.5 * float(hi[1] - lo[1]), CAMERA_FOV, aspect)
+    return (float(c[0]), float(c[1]), max(dist, 0.3)), (float(c[0]), float(c[1]), 0.0)
+
+
 class PatternView:
     """Owns the scene of the pattern viser server."""
 
@@ -79,11 +106,11 @@ class PatternView:
         self.offsets: dict[str, np.ndarray] = {}
         self.handles: list[Handle] = []
         self.handle_set: HandleSet = HandleSet([], {})
-        self.symmetric: dict[str, str] = {}
-        """panel -> segment it is mirrored about (symmetry strokes)"""
-        self.darts: list[dict] = []
+        self.selected: int | None = None
+        """index of the selected handle (its name shows), None for none"""
+        self.show_all_labels = False
         self.show_mesh_edges = False
-        self.on_handle_drag: Callable[[str, Handle, np.ndarray], None] | None = None
+        self.on_handle_drag: Callable[[Phase, Handle, np.ndarray], None] | None = None
         """cb(phase 'press'|'drag'|'release', handle, d): d is the edit's d for the
         pointer motion since press (Handle.element_delta)"""
         self.on_click: Callable[[np.ndarray, str | None], None] | None = None
@@ -91,31 +118,29 @@ class PatternView:
         self._lock = threading.RLock()
         self._drag: dict | None = None
         self._handle_node = None
-        self._line_nodes: dict[str, object] = {}
+        self._labels: list = []
+        self._nodes: dict[str, object] = {}
+        self._framed: tuple[np.ndarray, np.ndarray] | None = None
+        """the pattern bounds (lo, hi) [m] the cameras were framed for"""
         server.scene.set_up_direction("+y")
-        server.initial_camera.position = (0.0, 0.0, 2.5)
-        server.initial_camera.look_at = (0.0, 0.0, 0.0)
-        server.initial_camera.up = (0.0, 1.0, 0.0)
-        server.initial_camera.fov = np.deg2rad(40.0)
+        ic = server.initial_camera
+        ic.fov = CAMERA_FOV
+        ic.up = (0.0, 1.0, 0.0)
+        ic.position, ic.look_at = self.fit_pattern(1.0)
+        self.framing = ClientFraming(server, self.fit_pattern)
         self.marker = server.scene.add_icosphere("/marker", radius=0.012, color=(230, 30, 30), visible=False,
                                                  position=(0.0, 0.0, 0.004))
         server.scene.on_click()(self._on_scene_click)
 
     # -- data in ----------------------------------------------------------------
 
-    def set_pattern(self, pattern: DraftedPattern, strokes: list | None = None) -> None:
+    def set_pattern(self, pattern: DraftedPattern) -> None:
         with self._lock:
             self.pattern = pattern
             self.offsets = layout_offsets(pattern)
-            self.handles, self.handle_set = [], HandleSet([], {})
-            self.symmetric, self.darts = {}, []
-            for st in strokes or []:
-                if st.kind == "symmetry" and st.panel:
-                    self.symmetric[st.panel] = str(st.params.get("axis", ""))
-                elif st.kind == "dart":
-                    self.darts.append({"panel": st.panel, **st.params})
+            self.handles, self.handle_set, self.selected = [], HandleSet([], {}), None
             self._draw_all()
-            self.frame_camera()
+            self._frame_if_changed()
 
     def set_handles(self, handle_set: HandleSet) -> None:
         """The design's editable elements (planned for the pattern on screen)."""
@@ -124,27 +149,45 @@ class PatternView:
                 return  # keep the gesture's handles until it ends
             self.handle_set = handle_set
             self.handles = list(handle_set.handles)
+            self.selected = None
             self._draw_handles()
 
     def set_mesh(self, mesh: GarmentMesh) -> None:
         with self._lock:
+            if self.mesh is not None and self.mesh.tris.shape == mesh.tris.shape \
+                    and np.array_equal(self.mesh.tris, mesh.tris) and np.array_equal(self.mesh.X, mesh.X):
+                self.mesh = mesh
+                return
             self.mesh = mesh
             self._draw_mesh()
 
-    def frame_camera(self) -> None:
-        """Centre every connected client's camera on the laid-out pattern."""
+    def restore(self) -> None:
+        """Outlines and handles back at rest (a drag that moved nothing, a rejected edit)."""
+        with self._lock:
+            if self.pattern is None:
+                return
+            with self.server.atomic():
+                for p in self.pattern.panels:
+                    self._draw_panel(p, p.outline)
+                if self._handle_node is not None:
+                    self._handle_node.batched_positions = self.handle_positions().astype(np.float32)
+
+    # -- camera -------------------------------------------------------------------
+
+    def fit_pattern(self, aspect: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """Camera (position, look_at) [m] of a canvas of this aspect showing the whole pattern."""
+        return fit_camera(*self.bounds(), aspect)
+
+    def _frame_if_changed(self) -> None:
+        """Frame the cameras to the pattern's bounds when they changed: every
+        piece stays in view whatever an edit did to the pattern's size."""
         lo, hi = self.bounds()
-        c = 0.5 * (lo + hi)
-        span = float(max(hi[0] - lo[0], hi[1] - lo[1], 0.2))
-        dist = 0.6 * span / np.tan(np.deg2rad(20.0)) + 0.2
+        if self._framed is not None and np.array_equal(lo, self._framed[0]) and np.array_equal(hi, self._framed[1]):
+            return
+        self._framed = (lo, hi)
         ic = self.server.initial_camera
-        ic.look_at = (float(c[0]), float(c[1]), 0.0)
-        ic.position = (float(c[0]), float(c[1]), dist)
-        for client in self.server.get_clients().values():
-            with client.atomic():
-                client.camera.position = ic.position
-                client.camera.look_at = ic.look_at
-                client.camera.up_direction = (0.0, 1.0, 0.0)
+        ic.position, ic.look_at = self.fit_pattern(1.0)
+        self.framing.reframe()
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         if self.pattern is None:
@@ -157,94 +200,72 @@ class PatternView:
     def display(self, panel: str, pts: np.ndarray) -> np.ndarray:
         return np.asarray(pts) + self.offsets.get(panel, 0.0)
 
+    def _add(self, name: str, node: object) -> None:
+        self._nodes[name] = node
+
     def _draw_all(self) -> None:
         pat = self.pattern
         sc = self.server.scene
         with self.server.atomic():
-            for name in list(self._line_nodes):
+            for name in list(self._nodes):
                 sc.remove_by_name(name)
-            self._line_nodes.clear()
+            self._nodes.clear()
             for p in pat.panels:
                 self._draw_panel(p, p.outline)
                 c = self.display(p.name, p.outline).mean(axis=0)
-                self._line_nodes[f"/panels/{p.name}/label"] = sc.add_label(
+                self._add(f"/panels/{p.name}/label", sc.add_label(
                     f"/panels/{p.name}/label", p.name, position=(float(c[0]), float(c[1]), 0.002),
-                    anchor="center-center", font_screen_scale=0.8)
+                    anchor="center-center", font_screen_scale=0.8))
             self._draw_seams()
-            self._draw_darts()
             self._draw_handles()
 
     def _draw_panel(self, p: Panel, outline: np.ndarray) -> None:
+        """Fill, outline with holes, and dart legs of a panel whose outline is ``outline``."""
         sc = self.server.scene
         P = self.display(p.name, outline)
-        closed = np.vstack([P, P[:1]])
-        segs = np.stack([closed[:-1], closed[1:]], axis=1)
-        pts3 = np.concatenate([segs, np.zeros(segs.shape[:2] + (1,))], axis=-1)
+        holes = [self.display(p.name, h) for h in p.holes]
+        loops = [P, *holes]
+        segs = np.concatenate([np.stack([L, np.roll(L, -1, axis=0)], axis=1) for L in loops])
         name = f"/panels/{p.name}/outline"
-        self._line_nodes[name] = sc.add_line_segments(name, pts3.astype(np.float32), OUTLINE, thickness=2.0,
-                                                      thickness_units="screen")
-        fill = _fan_or_triangulate(P)
+        self._add(name, sc.add_line_segments(name, _lift(segs, 0.0), OUTLINE, thickness=2.0,
+                                             thickness_units="screen"))
+        fill = _triangulate(P, holes)
         if fill is not None:
             v, f = fill
             name = f"/panels/{p.name}/fill"
-            self._line_nodes[name] = sc.add_mesh_simple(
+            self._add(name, sc.add_mesh_simple(
                 name, np.column_stack([v, np.full(len(v), -0.002)]).astype(np.float32), f.astype(np.uint32),
-                color=PANEL_FILL, side="double", cast_shadow=False, receive_shadow=False)
-        name = f"/panels/{p.name}/mirror"
-        seg_name = self.symmetric.get(p.name)
-        # drawn only while the drafted panel still has its axis segment (i.e.
-        # before couture.pattern has mirrored it)
-        if seg_name and any(s.name == seg_name for s in p.segments):
-            idx = segment_indices(p, seg_name)
-            M = mirror_about(P, P[idx[0]], P[idx[-1]])
-            closed = np.vstack([M, M[:1]])
-            segs = np.stack([closed[:-1], closed[1:]], axis=1)[::2]  # every other piece: dashed
-            pts3 = np.concatenate([segs, np.zeros(segs.shape[:2] + (1,))], axis=-1)
-            self._line_nodes[name] = sc.add_line_segments(name, pts3.astype(np.float32), (120, 120, 120),
-                                                          thickness=1.5, thickness_units="screen")
+                color=PANEL_FILL, side="double", cast_shadow=False, receive_shadow=False))
+        legs = []
+        for seg in p.segments:
+            if is_dart_leg(seg.name):
+                poly = outline if seg.hole < 0 else p.holes[seg.hole]
+                Q = self.display(p.name, poly[segment_indices(p, seg.name)])
+                legs.append(np.stack([Q[:-1], Q[1:]], axis=1))
+        if legs:
+            name = f"/panels/{p.name}/darts"
+            self._add(name, sc.add_line_segments(name, _lift(np.concatenate(legs), 0.001), DART_COLOR,
+                                                 thickness=3.0, thickness_units="screen"))
 
     def _draw_seams(self) -> None:
+        """Seams between panel edges, each pair in its own colour (a dart's
+        two legs are its seam: drawn as the dart)."""
         pat = self.pattern
-        for i, s in enumerate(pat.seams):
-            col = tuple(int(c) for c in SEAM_PALETTE[i % len(SEAM_PALETTE)])
+        k = 0
+        for s in pat.seams:
+            if is_dart_leg(s.a_segment) and is_dart_leg(s.b_segment):
+                continue
+            col = tuple(int(c) for c in SEAM_PALETTE[k % len(SEAM_PALETTE)])
             for side, (pn, sn) in enumerate(((s.a_panel, s.a_segment), (s.b_panel, s.b_segment))):
                 try:
-                    panel = pat.panel(pn)
-                    idx = segment_indices(panel, sn)
+                    P = self.display(pn, segment_points(pat.panel(pn), sn))
                 except (KeyError, StopIteration):
                     continue
-                P = self.display(pn, panel.outline[idx])
-                segs = np.stack([P[:-1], P[1:]], axis=1)
-                pts3 = np.concatenate([segs, np.full(segs.shape[:2] + (1,), 0.001)], axis=-1)
-                name = f"/seams/{i}/{side}"
-                self._line_nodes[name] = self.server.scene.add_line_segments(
-                    name, pts3.astype(np.float32), col, thickness=5.0, thickness_units="screen")
-
-    def _draw_darts(self) -> None:
-        for i, d in enumerate(self.darts):
-            try:
-                panel = self.pattern.panel(d["panel"])
-                if "segment" not in d or not any(s.name == d["segment"] for s in panel.segments):
-                    continue
-                idx = segment_indices(panel, str(d["segment"]))
-            except (KeyError, StopIteration):
-                continue
-            P = panel.outline[idx]
-            t = float(d.get("position", 0.5))
-            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
-            at = t * s[-1]
-            j = int(np.clip(np.searchsorted(s, at) - 1, 0, len(P) - 2))
-            f = (at - s[j]) / max(s[j + 1] - s[j], 1e-12)
-            c = P[j] * (1 - f) + P[j + 1] * f
-            tan = (P[j + 1] - P[j]) / max(np.linalg.norm(P[j + 1] - P[j]), 1e-12)
-            inward = np.array([-tan[1], tan[0]])  # outline is counter-clockwise: left is inside
-            half, depth = 0.5 * float(d.get("width", 0.02)), float(d.get("length", 0.08))
-            a, b, apex = c - half * tan, c + half * tan, c + depth * inward
-            pts = self.display(d["panel"], np.array([a, apex, apex, b]))
-            pts3 = np.column_stack([pts, np.full(4, 0.001)]).reshape(2, 2, 3)
-            name = f"/darts/{i}"
-            self._line_nodes[name] = self.server.scene.add_line_segments(
-                name, pts3.astype(np.float32), (200, 0, 120), thickness=3.0, thickness_units="screen")
+                name = f"/seams/{k}/{side}"
+                self._add(name, self.server.scene.add_line_segments(
+                    name, _lift(np.stack([P[:-1], P[1:]], axis=1), 0.001), col, thickness=5.0,
+                    thickness_units="screen"))
+            k += 1
 
     def handle_positions(self) -> np.ndarray:
         """Display positions of the handles, shape (h, 3) (z slightly above the panels)."""
@@ -258,27 +279,62 @@ class PatternView:
         import trimesh
 
         sc = self.server.scene
-        for name in [n for n in self._line_nodes if n.startswith("/handles")]:
+        for name in [n for n in self._nodes if n.startswith("/handles")]:
             sc.remove_by_name(name)
-            del self._line_nodes[name]
-        self._handle_node = None
+            del self._nodes[name]
+        self._handle_node, self._labels = None, []
         if not self.handles or self.pattern is None:
             return
-        ico = trimesh.creation.icosphere(subdivisions=1, radius=0.012)
+        ico = trimesh.creation.icosphere(subdivisions=1, radius=HANDLE_RADIUS)
         pos = self.handle_positions()
         cols = np.array([HANDLE_COLORS.get(h.kind, HANDLE_ACTIVE) for h in self.handles], np.uint8)
-        for i, (h, p) in enumerate(zip(self.handles, pos)):
+        for i, (h, p) in enumerate(zip(self.handles, pos, strict=True)):
             name = f"/handles_labels/{i}"
-            self._line_nodes[name] = sc.add_label(name, h.label, position=(float(p[0]) + 0.015, float(p[1]), 0.004),
-                                                  anchor="center-left", font_screen_scale=0.6)
-        name = "/handles"
-        self._handle_node = self.server.scene.add_batched_meshes_simple(
-            name, np.asarray(ico.vertices, np.float32), np.asarray(ico.faces, np.uint32),
+            self._labels.append(sc.add_label(name, h.label, position=(float(p[0]) + 0.015, float(p[1]), 0.004),
+                                             anchor="center-left", font_screen_scale=0.8,
+                                             visible=self._label_visible(i)))
+            self._add(name, self._labels[-1])
+        self._handle_node = sc.add_batched_meshes_simple(
+            "/handles", np.asarray(ico.vertices, np.float32), np.asarray(ico.faces, np.uint32),
             batched_wxyzs=np.tile([1.0, 0.0, 0.0, 0.0], (len(pos), 1)), batched_positions=pos.astype(np.float32),
             batched_colors=cols, cast_shadow=False, receive_shadow=False, lod="off")
-        self._line_nodes[name] = self._handle_node
-        self._handle_colors = cols
+        self._add("/handles", self._handle_node)
         self._handle_node.on_drag(self._on_handle_drag)
+        self._handle_node.on_click(self._on_handle_click)
+
+    # -- handle names: the selected one, or all on request ------------------------
+
+    def _label_visible(self, i: int) -> bool:
+        return self.show_all_labels or i == self.selected
+
+    def _show_labels(self) -> None:
+        for i, node in enumerate(self._labels):
+            node.visible = self._label_visible(i)
+
+    def select_handle(self, index: int | None) -> None:
+        """Select a handle (its name shows); None clears the selection."""
+        with self._lock:
+            self.selected = index if index is not None and 0 <= index < len(self.handles) else None
+            self._show_labels()
+
+    def set_show_all_labels(self, on: bool) -> None:
+        with self._lock:
+            self.show_all_labels = on
+            self._show_labels()
+
+    def visible_labels(self) -> list[str]:
+        """Names of the handles whose label is shown."""
+        return [h.label for i, h in enumerate(self.handles) if i < len(self._labels) and self._labels[i].visible]
+
+    def handle_near(self, p_display: np.ndarray, radius: float = 2 * HANDLE_RADIUS) -> int | None:
+        """The handle within ``radius`` [m] of a display point, nearest first."""
+        if not self.handles or self.pattern is None:
+            return None
+        d = np.linalg.norm(self.handle_positions()[:, :2] - np.asarray(p_display)[None, :2], axis=1)
+        i = int(np.argmin(d))
+        return i if d[i] <= radius else None
+
+    # -- mesh, markers, picking -----------------------------------------------------
 
     def _draw_mesh(self) -> None:
         sc = self.server.scene
@@ -289,10 +345,8 @@ class PatternView:
         e = np.sort(np.concatenate([m.tris[:, [0, 1]], m.tris[:, [1, 2]], m.tris[:, [2, 0]]]), axis=1)
         e = np.unique(e, axis=0)
         XY = self.mesh_display_X()
-        segs = np.stack([XY[e[:, 0]], XY[e[:, 1]]], axis=1)
-        pts3 = np.concatenate([segs, np.full(segs.shape[:2] + (1,), -0.001)], axis=-1)
-        sc.add_line_segments("/mesh", pts3.astype(np.float32), (150, 150, 170), thickness=1.0,
-                             thickness_units="screen")
+        sc.add_line_segments("/mesh", _lift(np.stack([XY[e[:, 0]], XY[e[:, 1]]], axis=1), -0.001),
+                             (150, 150, 170), thickness=1.0, thickness_units="screen")
 
     def set_show_mesh(self, on: bool) -> None:
         with self._lock:
@@ -347,7 +401,7 @@ class PatternView:
         best = None
         for p in self.pattern.panels:
             for s in p.segments:
-                P = self.display(p.name, p.outline[segment_indices(p, s.name)])
+                P = self.display(p.name, segment_points(p, s.name))
                 a, b = P[:-1], P[1:]
                 ab = b - a
                 t = np.clip(np.einsum("ij,ij->i", p_display - a, ab) / np.maximum((ab * ab).sum(1), 1e-18), 0, 1)
@@ -365,22 +419,29 @@ class PatternView:
         o, d = np.asarray(event.ray_origin), np.asarray(event.ray_direction)
         if abs(d[2]) < 1e-9:
             return
-        t = -o[2] / d[2]
-        p = (o + t * d)[:2]
+        p = (o - o[2] / d[2] * d)[:2]
+        self.select_handle(self.handle_near(p))
         if self.on_click is not None:
             self.on_click(p, self.panel_at(p))
+
+    def _on_handle_click(self, event) -> None:
+        i = event.instance_index
+        if i is None:
+            o, d = np.asarray(event.ray_origin), np.asarray(event.ray_direction)
+            i = self.handle_near((o - o[2] / d[2] * d)[:2]) if abs(d[2]) > 1e-9 else None
+        self.select_handle(i)
 
     async def _on_handle_drag(self, event) -> None:
         # async: keeps press/drag/release in order (see drape_view)
         with self._lock:
             if event.instance_index is None or event.instance_index >= len(self.handles):
                 return
-            phase = {"start": "press", "update": "drag", "end": "release"}[event.phase]
+            phase = VISER_DRAG_PHASE[event.phase]
             if phase == "press":
                 h = self.handles[event.instance_index]
-                self._drag = {"handle": h, "p0": self.handle_positions()[event.instance_index][:2].copy(),
-                              "grab": np.asarray(event.end_position[:2], np.float64),
+                self._drag = {"handle": h, "grab": np.asarray(event.end_position[:2], np.float64),
                               "index": event.instance_index}
+                self.select_handle(event.instance_index)
             drag = self._drag
             if drag is None:
                 return
@@ -399,6 +460,12 @@ class PatternView:
         jac = pj.outline if handle.hole < 0 else pj.holes[handle.hole]
         return jac[handle.vertex] @ np.asarray(dd, np.float64)
 
+    def preview_element(self, element: str, dd: np.ndarray) -> None:
+        """Show an edit of ``element`` made elsewhere (its handle, if it has one)."""
+        i = next((i for i, h in enumerate(self.handles) if h.element == element), None)
+        if i is not None:
+            self.preview(self.handles[i], dd, i)
+
     def preview(self, handle: Handle, dd: np.ndarray, index: int | None = None) -> None:
         """Show an edit before the new design is drafted: every outline moves
         by its Jacobian (X + J dd: a sloper option moves every gore), the
@@ -414,6 +481,13 @@ class PatternView:
                 pos = self.handle_positions()
                 pos[index, :2] += self.handle_motion(handle, dd)
                 self._handle_node.batched_positions = pos.astype(np.float32)
+                if index < len(self._labels):
+                    self._labels[index].position = (float(pos[index, 0]) + 0.015, float(pos[index, 1]), 0.004)
+
+
+def _lift(segs: np.ndarray, z: float) -> np.ndarray:
+    """2D line segments (k, 2, 2) at height z as float32 (k, 2, 3)."""
+    return np.concatenate([segs, np.full(segs.shape[:2] + (1,), z)], axis=-1).astype(np.float32)
 
 
 def _inside(poly: np.ndarray, p: np.ndarray) -> bool:
@@ -424,18 +498,37 @@ def _inside(poly: np.ndarray, p: np.ndarray) -> bool:
     return bool(np.count_nonzero(cross) % 2)
 
 
-def _fan_or_triangulate(P: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """A fill triangulation of a simple polygon (constrained Delaunay)."""
+def _triangulate(P: np.ndarray, holes: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray] | None:
+    """A fill triangulation of a polygon with holes (constrained Delaunay)."""
     import triangle as tr
 
-    k = len(P)
-    if k < 3:
+    loops = [L for L in (P, *holes) if len(L) >= 3]
+    if not loops or loops[0] is not P:
         return None
-    segs = np.column_stack([np.arange(k), (np.arange(k) + 1) % k])
+    starts = np.cumsum([0] + [len(L) for L in loops[:-1]])
+    segs = np.concatenate([s + np.column_stack([np.arange(len(L)), (np.arange(len(L)) + 1) % len(L)])
+                           for s, L in zip(starts, loops, strict=True)])
+    data = {"vertices": np.concatenate(loops), "segments": segs}
+    if len(loops) > 1:
+        data["holes"] = np.array([_point_inside(L) for L in loops[1:]])
     try:
-        out = tr.triangulate({"vertices": P, "segments": segs}, "pQ")
+        out = tr.triangulate(data, "pQ")
     except Exception:
         return None
     if "triangles" not in out:
         return None
     return out["vertices"], out["triangles"]
+
+
+def _point_inside(poly: np.ndarray) -> np.ndarray:
+    """A point inside a simple polygon: the centroid if inside, else the
+    midpoint of the first chord across it found from a vertex's neighbours."""
+    c = poly.mean(axis=0)
+    if _inside(poly, c):
+        return c
+    for i in range(len(poly)):
+        q = 0.5 * (poly[i - 1] + poly[(i + 1) % len(poly)])
+        m = 0.5 * (poly[i] + q)
+        if _inside(poly, m):
+            return m
+    return c

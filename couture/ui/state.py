@@ -1,17 +1,25 @@
 """UI state that is not drawing: the latest-value mailbox the bus callbacks
-write into, node liveness, fabric presets, and the sloper option tables
-(read from couture.pattern when it provides them)."""
+write into, the drape frame, fabric presets, and the sloper option tables
+(couture.pattern's data)."""
 
 from __future__ import annotations
 
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, Literal, TypeVar
 
 import numpy as np
 
+from couture.pattern import SLOPERS, Option
+from schemas.design import Fabric
+
 T = TypeVar("T")
+
+Phase = Literal["press", "drag", "release"]
+"""phase of a drag gesture"""
+VISER_DRAG_PHASE: dict[str, Phase] = {"start": "press", "update": "drag", "end": "release"}
+"""viser's drag event phase -> ours"""
 
 
 class LatestSlot(Generic[T]):
@@ -23,16 +31,11 @@ class LatestSlot(Generic[T]):
         self._cond = threading.Condition()
         self._value: T | None = None
         self._fresh = False
-        self.n_put = 0
-        self.n_coalesced = 0
 
     def put(self, value: T) -> None:
         with self._cond:
-            if self._fresh:
-                self.n_coalesced += 1
             self._value = value
             self._fresh = True
-            self.n_put += 1
             self._cond.notify_all()
 
     def take(self, timeout: float | None = None) -> T | None:
@@ -76,68 +79,21 @@ class DrapeFrame:
     """arrival time, Unix [s]"""
 
 
-@dataclass
-class NodeInfo:
-    name: str
-    alive: bool = True
-    kind: str = ""
-    state: str = ""
-    rates: dict[str, float] = field(default_factory=dict)
-    last_error: str = ""
-    seen: float = field(default_factory=time.time)
-
-
-@dataclass(frozen=True)
-class FabricPreset:
-    name: str
-    bend_stiffness: float
-    """[N m]"""
-    stretch_stiffness: float
-    """[N/m]"""
-    area_density: float
-    """[kg/m²]"""
-
-
-FABRIC_PRESETS: dict[str, FabricPreset] = {
-    p.name: p for p in (
-        # SC Table 1 rows (bending, stretching, density)
-        FabricPreset("silk-like", 1e-8, 10.0, 0.2),
-        FabricPreset("cotton", 5e-6, 200.0, 0.15),
-        FabricPreset("stiff", 3e-4, 2000.0, 0.08),
+FABRIC_PRESETS: dict[str, Fabric] = {
+    f.name: f for f in (
+        # SC Table 1 rows (bending [N m], stretching [N/m], density [kg/m²])
+        Fabric(name="silk-like", bend_stiffness=1e-8, stretch_stiffness=10.0, area_density=0.2),
+        Fabric(name="cotton", bend_stiffness=5e-6, stretch_stiffness=200.0, area_density=0.15),
+        Fabric(name="stiff", bend_stiffness=3e-4, stretch_stiffness=2000.0, area_density=0.08),
     )
 }
 
 
-@dataclass(frozen=True)
-class Option:
-    """A sloper option as data (FreeSewing style)."""
-
-    name: str
-    default: float
-    min: float
-    max: float
-    unit: str = "m"
-    step: float | None = None
-
-
-def _option_from_any(name: str, o: Any) -> Option:
-    if isinstance(o, Option):
-        return o
-    get = (lambda k, d=None: o.get(k, d)) if isinstance(o, dict) else (lambda k, d=None: getattr(o, k, d))
-    step = get("step") or (1.0 if get("integer", False) else None)
-    return Option(str(get("name", name) or name), float(get("default")), float(get("min")), float(get("max")),
-                  str(get("unit", "") or ""), step)
-
-
 def sloper_kinds() -> list[str]:
     """The slopers couture.pattern can draft."""
-    from couture.pattern import SLOPERS
-
     return list(SLOPERS)
 
 
-def sloper_options(kind: str) -> list[Option]:
-    """The option table of a sloper (couture.pattern's data: default, min, max, unit)."""
-    from couture.pattern import SLOPERS
-
-    return [_option_from_any(o.name, o) for o in SLOPERS[kind].options]
+def sloper_options(kind: str) -> tuple[Option, ...]:
+    """The option table of a sloper (default, min, max, unit)."""
+    return tuple(SLOPERS[kind].options)

@@ -10,7 +10,8 @@ if __name__ == "__main__":
     add_bus_args(p)
     p.add_argument("--name", default="ui", help="node name, unique in the session")
     p.add_argument("--host", default="127.0.0.1", help="web UI host (default loopback)")
-    p.add_argument("--port", type=int, default=8080, help="3D view port; pattern view +1, page +2")
+    p.add_argument("--port", type=int, default=8080,
+                   help="the page designers open; the 3D view is port + 1, the pattern view port + 2")
     p.add_argument("--export-dir", type=Path, default=Path("out/exports"), help="where exports are written")
     p.add_argument("--record-dir", type=Path, default=Path("out/recordings"),
                    help="where the record toggle writes session-<time>.mcap when no recorder node runs")

@@ -24,8 +24,12 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from couture.bus import BusConfig, Node
 from couture.ui import CoutureUI, UIConfig
+from couture.ui.gestures import Edit
+from schemas.arrays import Array
 from schemas.convert import msg_to_mesh
 from schemas.design import Design
 from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, StatusMsg
@@ -41,7 +45,7 @@ class Config:
     host: str = "127.0.0.1"
     """viser binds here (loopback by default)"""
     port: int = 8080
-    """3D view port; the pattern view is port + 1 and the combined page port + 2"""
+    """the combined page (what users open); the 3D view is port + 1, the pattern view port + 2"""
     export_dir: Path = Path("out/exports")
     record_dir: Path = Path("out/recordings")
     """where the record toggle writes session-<time>.mcap (when no recorder node runs)"""
@@ -89,11 +93,11 @@ class UIAdapter:
                                         design_id=uuid.uuid4().hex))
         self.node.count("pattern_out")
 
-    def publish_edit(self, edit: dict) -> None:
-        self._own_edits.add(edit["edit_id"])
+    def publish_edit(self, edit: Edit) -> None:
+        self._own_edits.add(edit.edit_id)
         if len(self._own_edits) > 1000:
             self._own_edits.clear()
-        self.edit_pub.put(EditMsg(generation=self.ui.generation, **edit))
+        self.edit_pub.put(edit_msg(edit, self.ui.generation))
         self.node.count("edit_out")
 
     # -- in (Zenoh threads: store and return)
@@ -107,7 +111,7 @@ class UIAdapter:
     def on_edit(self, msg: EditMsg) -> None:
         if msg.edit_id in self._own_edits or msg.picked_vertex >= 0:
             return  # our own, or a 3D tug (its d is in pixels: nothing to move in 2D)
-        self.ui.apply_edit({"element": msg.element, "d": msg.d.numpy(), "phase": msg.phase})
+        self.ui.preview_remote_edit(msg.element, msg.d.numpy())
 
     def on_mesh(self, msg: MeshMsg) -> None:
         if msg.unchanged:
@@ -226,6 +230,19 @@ class UIAdapter:
     def on_status(self, msg: StatusMsg) -> None:
         self.ui.set_node_status(msg.node, kind=msg.kind, state=msg.state, rates=msg.rates,
                                 last_error=msg.last_error)
+
+
+def edit_msg(edit: Edit, generation: int) -> EditMsg:
+    """The ``edit`` message of one gesture phase, for the design of ``generation``."""
+    pick = edit.pick
+    return EditMsg(
+        generation=generation, edit_id=edit.edit_id, phase=edit.phase, element=edit.element, dofs=list(edit.dofs),
+        d=Array.from_numpy(np.asarray(edit.d, np.float64)), param=edit.param,
+        picked_vertex=pick.vertex if pick else -1, picked_tri=pick.tri if pick else -1,
+        picked_bary=Array.from_numpy(pick.bary) if pick else None,
+        view_proj=Array.from_numpy(pick.view_proj) if pick and pick.view_proj is not None else None,
+        viewport_px=list(pick.viewport_px) if pick and pick.viewport_px else [],
+    )
 
 
 def main(config: Config) -> None:
