@@ -13,7 +13,7 @@ import shutil
 import sys
 from pathlib import Path
 
-BENCHES = ["bus", "solver", "remesh", "sensitivity", "edit", "ui", "drape_slopers"]
+BENCHES = ["bus", "solver", "remesh", "sensitivity", "edit", "ui", "drape_slopers", "drape"]
 
 
 def _parser() -> argparse.ArgumentParser:
