@@ -13,7 +13,8 @@ from couture.bench import drape as bench
 pytestmark = pytest.mark.timeout(300)
 
 SMALL = {"schema": "couture/design/v1",
-         "design": {"sloper": {"kind": "skirt", "params": {}}, "resolution": {"coarse_vertices": 300, "fine_vertices": 900}}}
+         "design": {"sloper": {"kind": "skirt", "params": {}},
+                    "resolution": {"coarse_vertices": 300, "fine_vertices": 900}}}
 
 
 def finite(v) -> bool:

@@ -22,7 +22,8 @@ pytestmark = pytest.mark.timeout(120)
 SMALL = {"sloper": {"kind": "skirt", "params": {}}, "resolution": {"coarse_vertices": 300, "fine_vertices": 900}}
 
 
-def _drape(tmp_path: Path, design: dict, *extra: str, timeout: float = 100.0) -> tuple[subprocess.CompletedProcess, float]:
+def _drape(tmp_path: Path, design: dict, *extra: str,
+           timeout: float = 100.0) -> tuple[subprocess.CompletedProcess, float]:
     pattern = tmp_path / "p.json"
     pattern.write_text(json.dumps(design))
     # a session of its own, so parallel runs never see each other's drapes

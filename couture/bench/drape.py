@@ -220,7 +220,8 @@ def warm_up(solvers: list[str]) -> dict[str, float]:
 
 # -- size sweep -----------------------------------------------------------------------------------
 
-def sweep_one(fine_vertices: int, method: str, max_seconds: float, design_name: str = "default_skirt") -> dict[str, Any]:
+def sweep_one(fine_vertices: int, method: str, max_seconds: float,
+              design_name: str = "default_skirt") -> dict[str, Any]:
     """One size of the sweep, in this process (run it in a fresh one): warm
     up, drape the design at ``fine_vertices``, add this process's peak
     resident memory [MiB]."""
@@ -344,7 +345,8 @@ def goals(case: dict[str, Any]) -> dict[str, bool | None]:
     fine_sps = lv.get("fine", {}).get("steps_per_s")
     coarse_sps = lv.get("coarse", {}).get("steps_per_s")
     return {
-        "fine_total_s": None if "fine" not in lv else (tt["total"] is not None and tt["total"] <= GOALS["fine_total_s"]),
+        "fine_total_s": None if "fine" not in lv
+        else (tt["total"] is not None and tt["total"] <= GOALS["fine_total_s"]),
         "fine_steps_per_s": None if fine_sps is None else fine_sps >= GOALS["fine_steps_per_s"],
         "coarse_steps_per_s": None if coarse_sps is None else coarse_sps >= GOALS["coarse_steps_per_s"],
     }

@@ -163,7 +163,8 @@ def run_pattern_changes(changes: int, solver: str = "kinetic", timeout: float = 
                    "fine_s": t_fine - t_pub, "fine_converged": fine.converged, "fine_residual": fine.residual,
                    "fine_iterations": fine.iterations, "fine_diagnosis": fine.diagnosis}
             rows.append(row)
-            print(f"[pattern] change {k}: coarse {row['coarse_s'] if row['coarse_s'] is None else round(row['coarse_s'], 2)} s, "
+            coarse_txt = "-" if row["coarse_s"] is None else f"{row['coarse_s']:.2f}"
+            print(f"[pattern] change {k}: coarse {coarse_txt} s, "
                   f"fine {row['fine_s']:.2f} s (residual {fine.residual:.2e}, converged {fine.converged})",
                   file=sys.stderr, flush=True)
         mesh = client.latest_mesh("fine")
