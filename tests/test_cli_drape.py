@@ -1,21 +1,27 @@
 """`couture drape` end to end, real nodes over Zenoh on a small skirt: the
 exit status says whether the fine drape converged (0), stopped short (3, the
 drape written and the diagnosis printed) or the design was bad (4, within
-seconds, naming the element); the default output carries no log chatter."""
+seconds, naming the element); the default output carries no log chatter.
+The progress lines and the client's wait are also checked without a bus."""
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import subprocess
 import sys
+import threading
 import time
 import uuid
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from couture.cli import DrapeExit
+from couture.cli import DrapeExit, _DrapeProgress
+from couture.client import Client, PatternRejected
+from schemas import DrapeMsg, StatusMsg
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -67,3 +73,51 @@ def test_rejected_design_exits_4_fast_naming_the_element(tmp_path):
     assert "rejected pattern generation 1: param:length" in r.stderr
     assert seconds < 45, f"took {seconds:.0f} s: the rejection was not noticed, the wait ran on"
     assert not (tmp_path / "out" / "drape.obj").exists()
+
+
+def _drape_msg(level: str, residual: float, *, generation: int = 1, final: bool = False,
+               converged: bool = False, diagnosis: str = "") -> DrapeMsg:
+    return DrapeMsg(level=level, x=np.zeros((3, 3)), residual=residual, iterations=7, solver="solver-newton",
+                    method="newton", generation=generation, final=final, converged=converged, diagnosis=diagnosis)
+
+
+def test_progress_prints_one_line_per_level_result():
+    out = io.StringIO()
+    progress = _DrapeProgress({"coarse": 1e-3, "fine": 1e-4}, stream=out)
+    for msg in (_drape_msg("coarse", 10.0), _drape_msg("coarse", 0.1), _drape_msg("coarse", 5e-4, final=True,
+                converged=True), _drape_msg("coarse", 4e-4), _drape_msg("fine", 0.2),
+                _drape_msg("fine", 3e-2, final=True, diagnosis="max_seconds 1 reached")):
+        progress(msg)
+    progress.close()
+    lines = out.getvalue().splitlines()
+    assert lines == [
+        "[drape] coarse: converged, residual 5.00e-04 (tolerance 1e-03) after 7 iterations in 0.0 s "
+        "(solver-newton, newton)",
+        "[drape] fine: NOT converged, residual 3.00e-02 (tolerance 1e-04) after 7 iterations in 0.0 s "
+        "(solver-newton, newton): max_seconds 1 reached",
+    ]
+
+
+def test_follow_drape_passes_its_generation_on_and_raises_on_the_remeshers_rejection():
+    """Bus-free: messages fed to the client's callbacks as the bus would."""
+    client = Client(name="t")
+    seen: list[tuple[int, str, bool]] = []
+    client._on_drape(_drape_msg("fine", 1.0, generation=1, final=True))  # an older design's drape
+    feeder = threading.Timer(0.2, lambda: [client._on_drape(m) for m in (
+        _drape_msg("coarse", 0.5, generation=2), _drape_msg("coarse", 1e-3, generation=2, final=True),
+        _drape_msg("fine", 1e-5, generation=2, final=True, converged=True))])
+    feeder.start()
+    d = client.follow_drape(2, timeout=10, on_drape=lambda m: seen.append((m.generation, m.level, m.final)))
+    assert (d.generation, d.level, d.converged) == (2, "fine", True)
+    assert seen == [(2, "coarse", False), (2, "coarse", True), (2, "fine", True)]
+
+    reason = "param:length: value -1 m is outside [0.38, 1] m"
+    client._on_status(StatusMsg(node="remesher", kind="remesher",
+                                last_error=f"pattern generation 2 rejected: {reason}"))
+    assert client.rejection(3) is None  # another generation's rejection says nothing about 3
+    threading.Timer(0.2, lambda: client._on_status(StatusMsg(
+        node="remesher", kind="remesher", last_error=f"pattern generation 3 rejected: {reason}"))).start()
+    t0 = time.monotonic()
+    with pytest.raises(PatternRejected) as e:
+        client.follow_drape(3, timeout=10)
+    assert time.monotonic() - t0 < 5 and e.value.reason == reason and e.value.generation == 3
