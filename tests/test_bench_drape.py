@@ -1,5 +1,5 @@
 """`couture bench drape` on a small skirt: the JSON has every figure the
-issue asks for, finite, and the plots are written (no timing goals here)."""
+benchmark promises, finite, and the plots are written (no timing goals here)."""
 
 from __future__ import annotations
 
