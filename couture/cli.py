@@ -302,7 +302,9 @@ def drape(pattern: str, out: str, *, bus, timeout: float = 240.0, solver: str = 
         if bus.connect:
             cfg = bus
         else:
-            nodes = supervisor.default_nodes(solvers=[solver], ui=False)
+            # no sensitivity node: a one-shot drape makes no predictions, and its
+            # refactorizations would take CPU from the solve
+            nodes = [n for n in supervisor.default_nodes(solvers=[solver], ui=False) if n.name != "sensitivity"]
             if solver_max_seconds is not None:
                 for n in nodes:
                     if n.module == "nodes.solver":
