@@ -3,18 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import enum
 import importlib
 import json
 import logging
+import math
 import pkgutil
 import shutil
 import sys
 from pathlib import Path
 
-import couture.bench
-
-BENCHES = sorted(m.name for m in pkgutil.iter_modules(couture.bench.__path__))
-"""every module of couture.bench is a benchmark with a main(argv)"""
+import math
+import pkgutil
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -68,11 +69,23 @@ def _parser() -> argparse.ArgumentParser:
     fx.add_argument("--strain-max", type=float, default=0.10, help="top of the fixed strain colour range (Green strain)")
     fx.add_argument("--no-body", action="store_true", help="leave out the mannequin")
 
-    dp = sub.add_parser("drape", help="drape a pattern file: start (or join) the nodes, write OBJ + pattern")
+    dp = sub.add_parser(
+        "drape", help="drape a pattern file: start (or join) the nodes, write OBJ + pattern",
+        description="Drape a pattern file once: start the nodes (or join a running session with\n"
+                    "--connect), publish the design, show each level's residual falling, and write\n"
+                    "drape.obj, drape.json and the pattern (JSON, DXF, SVG, PDF) into --out.",
+        epilog=DRAPE_EXIT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     dp.add_argument("pattern", help="pattern JSON (couture/design/v1)")
     dp.add_argument("--out", required=True, help="output directory")
-    dp.add_argument("--timeout", type=float, default=120.0, help="[s] to wait for drape/fine")
+    dp.add_argument("--timeout", type=float, default=240.0,
+                    help="[s] to wait for the final fine drape (default 240: longer than the solver's own caps, "
+                         "so a slow solve ends with its diagnosis, exit 3, rather than a timeout, exit 5)")
     dp.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet"])
+    dp.add_argument("--solver-max-seconds", type=float, default=None, metavar="S",
+                    help="[s] cap on each level's solve in the solver node this command starts "
+                         "(default: the solver's own; ignored with --connect)")
+    dp.add_argument("-v", "--verbose", dest="drape_verbose", action="store_true",
+                    help="also show node lifecycle and library logs (default: progress and the result only)")
     add_bus_args(dp)
 
     gp = sub.add_parser("golden", help="golden recordings: make or check recordings/<case>.mcap", add_help=False)
@@ -154,7 +167,8 @@ def _dispatch(args: argparse.Namespace) -> int:
         return 0
 
     if args.cmd == "drape":
-        return drape(args.pattern, args.out, bus=bus_config_from_args(args), timeout=args.timeout, solver=args.solver)
+        return drape(args.pattern, args.out, bus=bus_config_from_args(args), timeout=args.timeout, solver=args.solver,
+                     solver_max_seconds=args.solver_max_seconds, verbose=args.verbose or args.drape_verbose)
 
     if args.cmd == "bench":
         try:
@@ -169,32 +183,166 @@ def _dispatch(args: argparse.Namespace) -> int:
     raise AssertionError(args.cmd)
 
 
-def drape(pattern: str, out: str, *, bus, timeout: float = 120.0, solver: str = "kinetic") -> int:
+class DrapeExit(enum.IntEnum):
+    """Exit status of ``couture drape``; meanings in ``_DRAPE_EXIT_TEXT`` (shown by --help)."""
+
+    CONVERGED = 0
+    ERROR = 1
+    USAGE = 2
+    NOT_CONVERGED = 3
+    BAD_DESIGN = 4
+    TIMEOUT = 5
+
+
+_DRAPE_EXIT_TEXT = {
+    DrapeExit.CONVERGED: "converged fine drape; every output written",
+    DrapeExit.ERROR: "error: missing file, a node failed, no matching mesh",
+    DrapeExit.USAGE: "bad command line",
+    DrapeExit.NOT_CONVERGED: "the solver stopped short of its tolerance: drape written anyway, diagnosis printed",
+    DrapeExit.BAD_DESIGN: "bad design: not a couture/design/v1 file, or the remesher rejected it "
+                          "(reason printed); no drape written",
+    DrapeExit.TIMEOUT: "no final fine drape within --timeout; no drape written",
+}
+DRAPE_EXIT_HELP = "exit status:\n" + "\n".join(f"  {int(c)}  {t}" for c, t in _DRAPE_EXIT_TEXT.items())
+
+
+class _DrapeProgress:
+    """One bar per level: the relative residual on a log scale, from the
+    level's first reported residual down to its tolerance, fed by the
+    solver's progress drapes. Bars only on a terminal; each level's final
+    result is printed as one line either way."""
+
+    def __init__(self, tol: dict[str, float], stream=sys.stderr) -> None:
+        from tqdm import tqdm
+
+        self._tqdm = tqdm
+        self.tol = tol
+        """relative residual each level stops at (the solver service's defaults)"""
+        self.stream = stream
+        self.bars: dict[str, object] = {}
+        self.r0: dict[str, float] = {}
+        self.finals: dict[str, object] = {}
+
+    def __call__(self, msg) -> None:
+        level = msg.level
+        if level in self.finals:
+            return  # a late progress snapshot after the level's result
+        r = float(msg.residual)
+        for other in self.bars:  # a level is done once the next one reports
+            if other != level:
+                self._close(other)
+        if level not in self.bars and not msg.final:
+            self.r0[level] = r if math.isfinite(r) and r > 0 else 1.0
+            # tqdm takes a pseudo-terminal that reports no size as -1 rows and
+            # then draws nothing; shutil falls back to 80x24 there
+            cols, rows = shutil.get_terminal_size()
+            self.bars[level] = self._tqdm(total=100, desc=f"{level:>6}", leave=True, file=self.stream,
+                                          disable=None, ncols=cols, nrows=rows,
+                                          bar_format="{desc} {bar:30} {postfix}")
+        bar = self.bars.get(level)
+        if bar is not None:
+            if math.isfinite(r) and r > 0:
+                span = math.log10(max(self.r0[level], self.tol[level] * 10) / self.tol[level])
+                frac = math.log10(max(self.r0[level], r) / r) / span
+                # the fill keeps the best so far (a residual may rise for a while); the text shows the latest
+                bar.n = max(bar.n, int(round(100 * min(max(frac, 0.0), 1.0))))  # type: ignore[attr-defined]
+            bar.set_postfix_str(f"residual {r:.2e} -> {self.tol[level]:.0e}, {msg.iterations} its",  # type: ignore[attr-defined]
+                                refresh=True)
+        if msg.final:
+            self.finals[level] = msg
+            self._close(level)
+            print(f"[drape] {level}: {_describe(msg, self.tol[level])}", file=self.stream, flush=True)
+
+    def _close(self, level: str) -> None:
+        bar = self.bars.get(level)
+        if bar is not None and not getattr(bar, "_closed_by_us", False):
+            bar.refresh()  # type: ignore[attr-defined]
+            bar.close()  # type: ignore[attr-defined]
+            bar._closed_by_us = True  # type: ignore[attr-defined]
+
+    def close(self) -> None:
+        for level in self.bars:
+            self._close(level)
+
+
+def _describe(d, tol: float) -> str:
+    """One line for a level's final drape: state, residual, iterations, time, solver, why."""
+    state = "converged" if d.converged else "NOT converged"
+    why = f": {d.diagnosis}" if d.diagnosis else ""
+    return (f"{state}, residual {d.residual:.2e} (tolerance {tol:.0e}) after {d.iterations} iterations in "
+            f"{d.wall_time_s:.1f} s ({d.solver}, {d.method}){why}")
+
+
+def drape(pattern: str, out: str, *, bus, timeout: float = 240.0, solver: str = "kinetic",
+          solver_max_seconds: float | None = None, verbose: bool = False) -> int:
     """Drape a pattern file: join the bus given by ``bus.connect`` or start the
-    nodes (no UI), publish the pattern, wait for drape/fine, write
-    ``drape.obj`` (pattern as texture coordinates), ``drape.json`` (solver,
-    residual), ``pattern.json`` and the cuttable pattern as ``pattern.dxf``
-    (AAMA-style), ``pattern.svg`` and ``pattern.pdf`` (true scale) into ``out``."""
+    nodes (no UI), publish the pattern, wait for the final drape/fine of that
+    generation while showing each level's residual, and write ``drape.obj``
+    (pattern as texture coordinates), ``drape.json`` (solver, residual,
+    converged, diagnosis), ``pattern.json`` and the cuttable pattern as
+    ``pattern.dxf`` (AAMA-style), ``pattern.svg`` and ``pattern.pdf`` (true
+    scale) into ``out``. Returns a :class:`DrapeExit` code: 0 only for a
+    converged fine drape.
+
+    Node output (lifecycle, library logs) goes to ``out/nodes.log`` unless
+    ``verbose``; ``timeout`` [s] bounds the wait for the fine drape and
+    ``solver_max_seconds`` [s] caps each level's solve in a started solver."""
     from contextlib import ExitStack
 
     from couture import supervisor
-    from couture.client import Client, load_design
+    from couture.client import Client, PatternRejected, load_design
+    from couture.solvers.service import SolveService
 
-    design = load_design(pattern)  # fail on a bad file before starting anything
+    if not verbose:
+        # ezdxf and the supervisor log at INFO; the result lines say what matters
+        logging.getLogger().setLevel(logging.WARNING)
+    try:
+        design = load_design(pattern)  # fail on a bad file before starting anything
+    except ValueError as e:
+        print(f"couture drape: bad design: {e}", file=sys.stderr)
+        return DrapeExit.BAD_DESIGN
     out_dir = Path(out)
+    # the tolerances the solver node stops at, for the bars' scale only
+    tol = {f.name: f.default_factory() for f in dataclasses.fields(SolveService) if f.name == "tol"}["tol"]
+    progress = _DrapeProgress(tol)
     with ExitStack() as stack:
         if bus.connect:
             cfg = bus
         else:
+            # no sensitivity node: a one-shot drape makes no predictions, and its
+            # refactorizations would take CPU from the solve
+            nodes = [n for n in supervisor.default_nodes(solvers=[solver], ui=False) if n.name != "sensitivity"]
+            if solver_max_seconds is not None:
+                for n in nodes:
+                    if n.module == "nodes.solver":
+                        n.args += ["--max-seconds", str(solver_max_seconds)]
+            child_log = None
+            if not verbose:
+                out_dir.mkdir(parents=True, exist_ok=True)
+                child_log = out_dir / "nodes.log"
+                child_log.write_bytes(b"")
             sup = stack.enter_context(supervisor.Supervisor(supervisor.SupervisorConfig(
-                bus=bus, nodes=supervisor.default_nodes(solvers=[solver], ui=False))))
+                bus=bus, nodes=nodes, child_log=None if child_log is None else str(child_log))))
             cfg = sup.child_bus
         client = stack.enter_context(Client(bus=cfg))
+        stack.callback(progress.close)
         if not bus.connect:
             client.wait_nodes(["remesher", f"solver-{solver}"], timeout=min(30.0, timeout))
         gen = client.publish_pattern(design, name=Path(pattern).stem)
-        print(f"[drape] published {pattern} as generation {gen}; waiting for drape/fine...", file=sys.stderr)
-        d = client.wait_drape("fine", generation=gen, timeout=timeout, final=True)
+        print(f"[drape] {pattern}: generation {gen}, solver {solver}", file=sys.stderr, flush=True)
+        try:
+            d = client.follow_drape(gen, timeout=timeout, on_drape=progress)
+        except PatternRejected as e:
+            progress.close()
+            print(f"couture drape: bad design: {e}", file=sys.stderr)
+            return DrapeExit.BAD_DESIGN
+        except TimeoutError as e:
+            progress.close()
+            print(f"couture drape: timeout: {e}", file=sys.stderr)
+            return DrapeExit.TIMEOUT
+        progress.close()
+        if "fine" not in progress.finals:  # joined after the fine result was already out
+            print(f"[drape] fine: {_describe(d, tol['fine'])}", file=sys.stderr, flush=True)
         mesh = client.latest_mesh("fine")
         if mesh is None or mesh.generation != d.generation or mesh.X.shape[0] != d.x.shape[0]:
             raise RuntimeError(f"drape/fine for generation {d.generation} arrived but no matching mesh/fine "
@@ -211,10 +359,16 @@ def drape(pattern: str, out: str, *, bus, timeout: float = 120.0, solver: str = 
         export_pdf(drafted, out_dir / "pattern.pdf")
         (out_dir / "drape.json").write_text(json.dumps({
             "generation": d.generation, "solver": d.solver, "method": d.method, "residual": d.residual,
-            "iterations": d.iterations, "converged": d.converged, "diagnosis": d.diagnosis, "wall_time_s": d.wall_time_s,
+            "tolerance": tol["fine"], "iterations": d.iterations, "converged": d.converged, "diagnosis": d.diagnosis,
+            "wall_time_s": d.wall_time_s,
         }, indent=2))
-        print(f"[drape] wrote {out_dir / 'drape.obj'} (residual {d.residual:.2e}, {d.solver})", file=sys.stderr)
-    return 0
+        print(f"[drape] wrote {out_dir / 'drape.obj'}, drape.json and pattern.json/.dxf/.svg/.pdf", file=sys.stderr)
+    if not d.converged:
+        print(f"couture drape: not converged: fine residual {d.residual:.2e} (tolerance {tol['fine']:.0e}) after "
+              f"{d.iterations} iterations, solver {d.solver} ({d.method}): {d.diagnosis or 'no diagnosis given'}",
+              file=sys.stderr)
+        return DrapeExit.NOT_CONVERGED
+    return DrapeExit.CONVERGED
 
 
 def write_obj(path: Path, x, tris, uv=None) -> None:

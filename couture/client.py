@@ -12,10 +12,13 @@ the nodes that were (not) live, never a made-up result.
 from __future__ import annotations
 
 import os
+import queue
+import re
 import threading
 import time
 import uuid
 from pathlib import Path
+from typing import Callable
 
 import msgspec
 import numpy as np
@@ -34,6 +37,21 @@ EXPECTED_PRODUCERS = {
     "drape/fine": "solver-*",
     "drape/predicted": "sensitivity",
 }
+
+
+# what nodes/remesher/main.py writes into its status when validation fails;
+# the end-to-end test of ``couture drape`` on a bad design pins the format
+_REJECTED = re.compile(r"pattern generation (\d+) rejected: (.*)", re.S)
+
+
+class PatternRejected(ValueError):
+    """The remesher rejected a design; ``reason`` names the bad element."""
+
+    def __init__(self, generation: int, reason: str, node: str = "remesher") -> None:
+        super().__init__(f"{node} rejected pattern generation {generation}: {reason}")
+        self.generation = generation
+        self.reason = reason
+        self.node = node
 
 
 def load_design(path: str | os.PathLike) -> Design:
@@ -67,6 +85,7 @@ class Client:
         """latest status message per node name"""
         self._seen_generation = 0
         self._own = OwnDesigns()
+        self._followers: list[queue.SimpleQueue] = []
         self._bus: Bus | None = None
 
     @property
@@ -100,6 +119,8 @@ class Client:
             lst = self._drapes[msg.level]
             lst.append(msg)
             del lst[:-64]
+            for q in self._followers:
+                q.put(msg)
             self._cond.notify_all()
 
     def _on_mesh(self, msg: MeshMsg) -> None:
@@ -111,7 +132,10 @@ class Client:
             self._cond.notify_all()
 
     def _on_status(self, msg: StatusMsg) -> None:
-        self.status[msg.node] = msg
+        with self._cond:
+            self.status[msg.node] = msg
+            for q in self._followers:
+                q.put(msg)
 
     def _on_pattern(self, msg: PatternMsg) -> None:
         with self._cond:
@@ -211,6 +235,11 @@ class Client:
                 self._cond.wait(left)
             if m is not None:
                 return m
+        raise self._timeout_error(kind, generation, timeout)
+
+    def _timeout_error(self, kind: str, generation: int | None, timeout: float) -> TimeoutError:
+        """A TimeoutError naming what was seen and which producers were (not) live."""
+        with self._cond:
             meshes = {lvl: mm.generation for lvl, mm in self._meshes.items()}
             drapes = {k: (v[-1].generation if v else None) for k, v in self._drapes.items()}
         live = self.live_nodes(timeout=0.5)
@@ -223,11 +252,60 @@ class Client:
             hints.append(f"no {producer} node is live")
         elif not producer.endswith("*") and producer not in live:
             hints.append(f"{producer} is not live")
-        raise TimeoutError(
+        return TimeoutError(
             f"no drape/{kind} for generation >= {generation} on session {self.cfg.session} within {timeout:g} s; "
             f"meshes seen (level: generation): {meshes or 'none'}; last drapes: {drapes}; live nodes: {live or 'none'}"
             + ("; " + "; ".join(hints) if hints else "")
         )
+
+    def rejection(self, generation: int) -> PatternRejected | None:
+        """The remesher's rejection of ``generation`` if its status reports one."""
+        with self._cond:
+            statuses = list(self.status.values())
+        for st in statuses:
+            m = _REJECTED.match(st.last_error) if st.kind == "remesher" else None
+            if m is not None and int(m.group(1)) == generation:
+                return PatternRejected(generation, m.group(2), st.node)
+        return None
+
+    def follow_drape(self, generation: int, timeout: float = 60.0, *,
+                     on_drape: Callable[[DrapeMsg], None] | None = None) -> DrapeMsg:
+        """Wait for the final drape/fine of exactly ``generation``.
+
+        Every drape/coarse and drape/fine of that generation (progress
+        snapshots and each level's final) is passed to ``on_drape`` as it
+        arrives, in this thread, oldest first. Raises :class:`PatternRejected`
+        as soon as the remesher's status reports the design rejected (within
+        its status period, about 1 s) and TimeoutError after ``timeout`` [s]."""
+        q: queue.SimpleQueue = queue.SimpleQueue()
+        with self._cond:
+            backlog = sorted((m for lv in ("coarse", "fine") for m in self._drapes[lv]), key=lambda m: m.stamp_ns)
+            for m in backlog:
+                q.put(m)
+            self._followers.append(q)
+        deadline = time.monotonic() + timeout
+        try:
+            if (rej := self.rejection(generation)) is not None:
+                raise rej
+            while (left := deadline - time.monotonic()) > 0:
+                try:
+                    msg = q.get(timeout=left)
+                except queue.Empty:
+                    break
+                if isinstance(msg, StatusMsg):
+                    if (rej := self.rejection(generation)) is not None:
+                        raise rej
+                    continue
+                if msg.generation != generation or msg.level not in ("coarse", "fine"):
+                    continue
+                if on_drape is not None:
+                    on_drape(msg)
+                if msg.level == "fine" and msg.final:
+                    return msg
+        finally:
+            with self._cond:
+                self._followers.remove(q)
+        raise self._timeout_error("fine", generation, timeout)
 
     def latest_mesh(self, level: str = "fine") -> MeshMsg | None:
         with self._cond:

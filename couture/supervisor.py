@@ -60,6 +60,9 @@ class SupervisorConfig:
     stable_after_s: float = 10.0
     term_timeout_s: float = 5.0
     python: str = sys.executable
+    child_log: str | None = None
+    """file the children's stdout and stderr are appended to (their lifecycle
+    and library logs); None: they share the supervisor's terminal"""
 
 
 def default_nodes(
@@ -153,7 +156,13 @@ class Supervisor:
     def _spawn(self, c: _Child) -> None:
         cmd = [self.config.python, "-m", c.spec.module, *self.child_bus.to_args(), "--name", c.spec.name, *c.spec.args]
         env = dict(os.environ, **{PARENT_PID_ENV: str(os.getpid())})
-        c.proc = subprocess.Popen(cmd, env=env, start_new_session=True, stdin=subprocess.DEVNULL)
+        if self.config.child_log:
+            # the child holds its own descriptor, so closing ours here is safe
+            with open(self.config.child_log, "ab") as out:
+                c.proc = subprocess.Popen(cmd, env=env, start_new_session=True, stdin=subprocess.DEVNULL,
+                                          stdout=out, stderr=subprocess.STDOUT)
+        else:
+            c.proc = subprocess.Popen(cmd, env=env, start_new_session=True, stdin=subprocess.DEVNULL)
         c.started = time.monotonic()
         c.restart_at = None
         log.info("started %s (pid %d): %s", c.spec.name, c.proc.pid, " ".join(cmd[1:3]))

@@ -91,7 +91,7 @@ def test_drape_fails_clearly_when_nothing_answers(tmp_path):
         r = subprocess.run([sys.executable, "-m", "couture.cli", "drape", str(pattern), "--out", str(tmp_path / "out"),
                             "--timeout", "1.5", "--session", session, "--connect", f"tcp/127.0.0.1:{port}"],
                            capture_output=True, text=True, timeout=60)
-    assert r.returncode == 1
+    assert r.returncode == 5  # couture.cli.DrapeExit.TIMEOUT
     assert "no drape/fine for generation >= 1" in r.stderr
     assert "remesher never answered (remesher is not live)" in r.stderr and "no solver-* node is live" in r.stderr
     assert not (tmp_path / "out" / "drape.obj").exists()
@@ -100,4 +100,4 @@ def test_drape_fails_clearly_when_nothing_answers(tmp_path):
     bad.write_text('{"sloper": {"kind": 3}}')
     r = subprocess.run([sys.executable, "-m", "couture.cli", "drape", str(bad), "--out", str(tmp_path / "out")],
                        capture_output=True, text=True, timeout=60)
-    assert r.returncode == 1 and "not a couture/design/v1 pattern" in r.stderr and "$.sloper.kind" in r.stderr
+    assert r.returncode == 4 and "not a couture/design/v1 pattern" in r.stderr  # DrapeExit.BAD_DESIGN and "$.sloper.kind" in r.stderr

@@ -9,6 +9,8 @@ if __name__ == "__main__":
     add_bus_args(p)
     p.add_argument("--name", default="solver-kinetic", help="node name, unique in the session")
     p.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet"])
+    p.add_argument("--max-seconds", type=float, default=None,
+                   help="[s] cap on each level's solve (default: the service's)")
     a = p.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s solver %(levelname)s %(message)s")
-    main(Config(bus=bus_config_from_args(a), name=a.name, solver=a.solver))
+    main(Config(bus=bus_config_from_args(a), name=a.name, solver=a.solver, max_seconds=a.max_seconds))

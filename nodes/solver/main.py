@@ -39,10 +39,16 @@ class Config:
     """'kinetic', 'newton' or 'verlet'"""
     progress_period_s: float = 0.5
     """[s] between progress drapes during a solve"""
+    max_seconds: float | None = None
+    """[s] cap on each level's solve (coarse and fine alike); None: the
+    service's defaults. A capped level is published unconverged, with its
+    diagnosis, like any other stopped solve."""
 
 
 def main(config: Config) -> None:
     service = SolveService(method=config.solver)
+    if config.max_seconds is not None:
+        service.max_seconds = {level: float(config.max_seconds) for level in service.max_seconds}
     with Node(config.name, config.bus, kind="solver") as node:
         bus = node.bus
         pubs = {lv: bus.publisher(f"drape/{lv}", DrapeMsg) for lv in ("coarse", "fine")}

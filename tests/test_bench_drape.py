@@ -1,0 +1,54 @@
+"""`couture bench drape` on a small skirt: the JSON has every figure the
+benchmark promises, finite, and the plots are written (no timing goals here)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from couture.bench import drape as bench
+
+pytestmark = pytest.mark.timeout(300)
+
+SMALL = {"schema": "couture/design/v1",
+         "design": {"sloper": {"kind": "skirt", "params": {}},
+                    "resolution": {"coarse_vertices": 300, "fine_vertices": 900}}}
+
+
+def finite(v) -> bool:
+    return isinstance(v, (int, float)) and math.isfinite(v)
+
+
+def test_bench_drape_writes_finite_figures_and_plots(tmp_path):
+    design = tmp_path / "small_skirt.json"
+    design.write_text(json.dumps(SMALL))
+    out = tmp_path / "results"
+    assert bench.main(["--designs", str(design), "--solvers", "kinetic", "--sizes", "600,900",
+                       "--sweep-design", str(design), "--sweep-solver", "kinetic", "--max-seconds", "60",
+                       "--out", str(out)]) == 0
+    rep = json.loads((out / "drape.json").read_text())
+    assert rep["bench"] == "drape" and finite(rep["warmup_s"]["kinetic"])
+    (case,) = rep["cases"]
+    assert (case["design"], case["solver"], case["friction"]) == ("small_skirt", "kinetic", True)
+    assert set(case["levels"]) == {"coarse", "fine"}
+    for lv in case["levels"].values():
+        for key in ("residual", "wall_time_s", "steps_per_s", "starts_at_s"):
+            assert finite(lv[key]), (key, lv[key])
+        assert lv["vertices"] > 0 and lv["iterations"] > 0 and isinstance(lv["converged"], bool)
+        assert lv["history"] and all(finite(t) and finite(r) for t, r in lv["history"])
+        la = lv["linear_algebra"]
+        assert all(finite(v) for k, v in la.items() if not k.endswith("_from")), la
+    assert set(case["time_to_tol_s"]) == {"coarse", "fine", "total"}
+    assert all(v is None or finite(v) for v in case["time_to_tol_s"].values())
+    assert set(case["goals"]) == {"fine_total_s", "fine_steps_per_s", "coarse_steps_per_s"}
+    sw = rep["sweep"]
+    assert [r["target"] for r in sw["rows"]] == [600, 900]
+    for r in sw["rows"]:
+        assert "error" not in r, r
+        assert r["vertices"] > 0 and finite(r["peak_rss_mib"]) and r["peak_rss_mib"] > 10
+    if sw["fit"] is not None:  # both sizes reached 1e-4
+        assert finite(sw["fit"]["exponent"])
+    assert (out / "drape_small_skirt.png").stat().st_size > 0
+    assert (out / "drape_sweep.png").stat().st_size > 0
