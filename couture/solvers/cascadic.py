@@ -108,8 +108,11 @@ def _contact_pass(fine_model, x, pen_target, movable, iters=3):
     for it in range(iters):
         if it:
             phi, g = fine_model.body.phi_grad(np.ascontiguousarray(x[idx]))
-        gl2 = np.einsum("ij,ij->i", g, g)
-        ok = np.isfinite(phi) & (gl2 > 1e-12)
+        # |grad phi| < 1 near the body's medial axis (between the legs, in an armpit),
+        # where phi / |grad|² would throw a vertex centimetres away: there the move is
+        # at most the depth change asked for, |phi_t - phi|, and the next pass goes on
+        gl2 = np.maximum(np.einsum("ij,ij->i", g, g), 1.0)
+        ok = np.isfinite(phi) & np.isfinite(gl2)
         step = np.where(ok, (phi_t - phi) / np.where(ok, gl2, 1.0), 0.0)
         x[idx] += step[:, None] * g
 

@@ -30,6 +30,7 @@ class ResidualScale:
         self.free = model.free
         num = float(np.linalg.norm(f[self.free]))
         rr = float(model.relative_residual(x))
+        self.den: float | None
         if getattr(model, "residual_scale_constant", True) and num > 0 and rr > 0 and np.isfinite(rr):
             self.den = num / rr
         else:
@@ -135,6 +136,8 @@ class BestState:
 
     def restore(self) -> np.ndarray:
         """The best positions, with the model's anchors put back to what they were then."""
+        if self.x is None:
+            raise RuntimeError("no state was offered")
         put = getattr(self.model, "set_friction_state", None)
         if put is not None:
             put(self.anchors)

@@ -69,14 +69,32 @@ solve that stops returns the best state it saw (``common.BestState``).
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 
 from .base import ProgressCallback, SolveResult
-from .common import (BestState, ResidualScale, Watch, energy_and_forces, energy_round_off, finish, friction_allowance,
-                     finite, pinned_positions)
-from .linalg import (IC0, FactorizationError, ReducedSystem, factorize, pcg, pcg_factor, resolve_backend,
-                     seam_first_order)
+from .common import (
+    BestState,
+    ResidualScale,
+    Watch,
+    energy_and_forces,
+    energy_round_off,
+    finish,
+    finite,
+    friction_allowance,
+    pinned_positions,
+)
+from .linalg import (
+    IC0,
+    FactorizationError,
+    ReducedSystem,
+    factorize,
+    pcg,
+    pcg_factor,
+    resolve_backend,
+    seam_first_order,
+)
 
 
 class KineticSolver:
@@ -212,7 +230,7 @@ class KineticSolver:
         x = pinned_positions(model, x0)
         v = np.zeros((n, 3)) if v0 is None else np.array(v0, dtype=np.float64)
         v[~free] = 0.0
-        stats = dict(assembly_s=0.0, linear_solve_s=0.0, precond_s=0.0, solve_s=0.0, friction_s=0.0, steps=0,
+        stats: dict[str, Any] = dict(assembly_s=0.0, linear_solve_s=0.0, precond_s=0.0, solve_s=0.0, friction_s=0.0, steps=0,
                      cg_iterations=0, cg_max=0, cg_unconverged=0, velocity_resets=0, rejected_steps=0, backtracks=0, clamped_steps=0,
                      factorizations=0, ic_shift=0.0, ic_retries=0, jacobi_fallbacks=0, direct_failures=0,
                      friction_checks=0, friction_excess_N=0.0, forced_steps=0, round_off_steps=0, dt_final=dt,
@@ -368,6 +386,7 @@ class KineticSolver:
                 ta = time.perf_counter()
                 ok = False
                 alpha = 1.0
+                assert E is not None  # set with f at the top of the loop
                 total0 = E + ke0
                 for _ in range(self.max_backtracks + 1):
                     E_new, f_new = energy_and_forces(model, x + alpha * step)

@@ -29,13 +29,23 @@ from __future__ import annotations
 
 import logging
 import time
+from typing import Any
 
 import numpy as np
 
 from .base import ProgressCallback, SolveResult
-from .common import (BestState, ResidualScale, Watch, energy_round_off, finish, friction_allowance, finite,
-                     pinned_positions, true_stiffness)
-from .linalg import FactorizationError, ReducedSystem, factorize, resolve_backend, seam_first_order
+from .common import (
+    BestState,
+    ResidualScale,
+    Watch,
+    energy_round_off,
+    finish,
+    finite,
+    friction_allowance,
+    pinned_positions,
+    true_stiffness,
+)
+from .linalg import Factor, FactorizationError, ReducedSystem, factorize, resolve_backend, seam_first_order
 
 log = logging.getLogger(__name__)
 
@@ -95,7 +105,7 @@ class NewtonSolver:
         self.friction_after = friction_after
         self.friction_every = max(1, int(friction_every))
         self._cache = None
-        self._factor = None  # kept across solves on one model: its symbolic analysis is reused
+        self._factor: Factor | None = None  # kept across solves on one model: its symbolic analysis is reused
 
     def _system(self, model, K):
         c = self._cache
@@ -113,14 +123,14 @@ class NewtonSolver:
         x0: np.ndarray,
         *,
         tol: float = 1e-8,
-        max_iters: int = 200,
+        max_iters: int = 1000,
         max_seconds: float = 120.0,
         callback: ProgressCallback | None = None,
     ) -> SolveResult:
         t_start = time.perf_counter()
         n = model.n
         x = pinned_positions(model, x0)
-        stats = dict(assembly_s=0.0, linear_solve_s=0.0, factorizations=0, factorization_failures=0,
+        stats: dict[str, Any] = dict(assembly_s=0.0, linear_solve_s=0.0, factorizations=0, factorization_failures=0,
                      backtracks=0, line_search_failures=0, shift_increases=0, energy_evals=0, projected_fallbacks=0, true_hessian_steps=0, backend=self.backend, steps=0,
                      slope_steps=0)
         history: list[tuple[float, float]] = []
