@@ -173,8 +173,10 @@ def test_extremes_converge_or_diagnose(case, solver):
     assert np.isfinite(res.residual)
     assert res.converged or res.diagnosis, "stopped without saying why"
     assert np.all(res.x[~model.free] == mesh.x0[~model.free])
-    if res.converged:
+    if res.converged and solver != "verlet":
         assert res.diagnosis == ""
+    if res.converged and solver == "verlet":  # stationary in its own model: it says so, and where it is in ours
+        assert "own mass-spring equilibrium" in res.diagnosis and "cloth-model relative residual" in res.diagnosis
 
 
 class _Poisoned:

@@ -537,6 +537,25 @@ class ClothModel:
                                         * fa[over][touching])
         return int(over.sum())
 
+    def refresh_contacts(self, x: np.ndarray) -> int:
+        """Anchor every vertex in contact that has none (where it is: no force) and let
+        go of anchors whose vertex left the offset layer. Unlike ``update_friction``
+        no anchor moves. Returns how many anchors were let go (those change forces)."""
+        if "friction" not in self.terms:
+            return 0
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        phi, grad = self._contact(x)
+        contact = phi < self.contact_offset
+        gone = self.anchored & ~contact
+        self.anchored[gone] = False
+        self.sliding[gone] = False
+        new = contact & ~self.anchored & ~self.slipping
+        self.anchor[new] = x[new]
+        self.anchor_normal[new] = grad[new] / np.maximum(np.linalg.norm(grad[new], axis=1), 1e-300)[:, None]
+        self.anchored[new] = True
+        self.sliding[new] = False
+        return int(gone.sum())
+
     def stick_slipping(self, x: np.ndarray) -> int:
         """Anchor every slipping vertex where it is, with the anchor spring holding the
         same force the kinetic friction did (the balance at x is unchanged); a vertex

@@ -65,6 +65,13 @@ class Watch:
         self.mark = min(self.mark, self.best)
         self.mark_at = it
 
+    def restart(self, it: int) -> None:
+        """Forget the best residual: the force field changed (friction anchors slipped),
+        so residuals before and after are not comparable."""
+        self.best = np.inf
+        self.mark = np.inf
+        self.mark_at = it
+
     def check(self, it: int, r: float) -> str:
         if not np.isfinite(r):
             return f"diverged: non-finite residual at iteration {it}"
@@ -189,3 +196,71 @@ def finish(model, x: np.ndarray, r: float, loop_diag: str, best: BestState, tol:
     if loop_diag and why and not why.startswith("residual"):
         diag = f"{loop_diag}; {why}"
     return x, r_fresh, False, diag + note
+
+
+class FrictionSchedule:
+    """When a solver touches the friction anchors (one policy for every solver).
+
+    1. Frictionless settling while the relative residual is above ``after``: a
+       fresh placement starts inside the contact layer with large normal forces,
+       and anchors made there would pin the cloth where it was placed.
+    2. ``engage``: anchors where the cloth rests (``update_friction``), once the
+       residual is below ``after`` or the solver reports a crawl (a garment
+       sliding or turning on the body: friction is what stops it).
+    3. ``during``, every ``every`` iterations: anchors pulled beyond mu_s f_n slip
+       (``slip_friction``: kinetic friction as a constant force), so a slide spreads
+       within one solve. Anchors never move otherwise: re-anchoring sliding vertices
+       at the kinetic limit as the cloth moves creeps without end.
+    4. ``at_balance`` (residual <= tol): slipping vertices stick where they came to
+       rest, new contacts are anchored, anchors off the body let go; if an anchor
+       still holds more than mu_s f_n (beyond ``friction_allowance``) it slips and
+       the solve goes on. Returns True when the forces changed.
+    """
+
+    def __init__(self, model, x: np.ndarray, r: float, tol: float, after: float, every: int):
+        self.model = model
+        self.present = "friction" in getattr(model, "terms", ()) and hasattr(model, "slip_friction")
+        self.every = max(1, int(every))
+        self.after = after
+        self.on = False
+        self.allowance = friction_allowance(model, x, tol) if self.present else 0.0
+        self.slipped = 0
+        self.checks = 0
+        self.excess = 0.0
+        if self.present:
+            if r <= after:
+                self.engage(x)  # a warm start keeps the anchors it balanced against
+            else:
+                model.release_friction()
+
+    def engage(self, x: np.ndarray) -> None:
+        self.model.update_friction(x)
+        self.on = True
+
+    def after_step(self, it: int, x: np.ndarray, r: float, crawling: bool) -> bool:
+        """Between iterations; True when the forces changed."""
+        if not self.present:
+            return False
+        if not self.on:
+            if r <= self.after or crawling:
+                self.engage(x)
+                return True
+            return False
+        if it % self.every == 0:
+            n = self.model.slip_friction(x)
+            self.slipped += n
+            return n > 0
+        return False
+
+    def at_balance(self, x: np.ndarray) -> bool:
+        """At a state balanced for the current anchors; True when the forces changed."""
+        if not (self.present and self.on):
+            return False
+        self.checks += 1
+        m = self.model
+        changed = bool(m.stick_slipping(x)) | bool(m.refresh_contacts(x))
+        self.excess = float(m.friction_excess(x))
+        if self.excess > self.allowance:
+            self.slipped += m.slip_friction(x)
+            changed = True
+        return changed

@@ -47,23 +47,17 @@ springs ~5000x the fabric, stalls; IC(0) of the raw matrix breaks down (negative
 pivots) on the same systems, and a small diagonal shift after Jacobi scaling
 (Manteuffel) fixes both. The shift grows only on breakdown.
 
-Friction (quasi-static anchors, ``model.update_friction``) starts only once
-the frictionless residual is below ``friction_after`` (1e-2): from a fresh
-placement the cloth starts inside the contact layer with normal forces up to
-~50 N per vertex, and anchors created there (static limit mu_s f_n) pinned it
-in place (measured: residual stuck at 22 after 30 s on the skirt, C¹ contact). From then
-on anchors are refreshed every ``friction_every`` (20) accepted steps, before
-the energy of the step start is taken, so the acceptance test compares
-energies of one force field, and the solver converges towards the equilibrium
-of fixed anchors in between (refreshing every step kept sliding anchors
-moving and stalled the skirt at ~1e-3). Convergence: residual <= tol
-including the anchor forces, and every anchor force within the static
-Coulomb limit mu_s f_n (``model.friction_excess``), i.e. a static Coulomb
-equilibrium; otherwise the anchors are refreshed (those beyond the limit
-slide to the kinetic one) and the solve goes on. Where the cloth keeps
-creeping the caps stop it and the result says so: ``converged`` is decided
-at return from fresh forces (``common.verdict``), never by the loop, and a
-solve that stops returns the best state it saw (``common.BestState``).
+Friction (quasi-static anchors) follows ``common.FrictionSchedule``, as in
+Newton: anchors only once the frictionless residual is below
+``friction_after`` (1e-2) or the solve crawls (from a fresh placement the
+cloth starts inside the contact layer with normal forces up to ~50 N per
+vertex, and anchors created there pinned it in place); every
+``friction_every`` (20) steps, anchors pulled beyond mu_s f_n slip under
+kinetic friction; at a balance (residual <= tol) slipping vertices stick,
+and the state is a static Coulomb equilibrium only if every anchor holds
+within mu_s f_n. ``converged`` is decided at return from fresh forces
+(``common.verdict``), never by the loop, and a solve that stops returns the
+best state it saw (``common.BestState``).
 """
 
 from __future__ import annotations
@@ -76,13 +70,13 @@ import numpy as np
 from .base import ProgressCallback, SolveResult
 from .common import (
     BestState,
+    FrictionSchedule,
     ResidualScale,
     Watch,
     energy_and_forces,
     energy_round_off,
     finish,
     finite,
-    friction_allowance,
     pinned_positions,
 )
 from .linalg import (
@@ -119,6 +113,7 @@ class KineticSolver:
         max_step: float | None = None,
         friction_every: int = 20,
         friction_after: float = 1e-2,
+        crawl_window: int = 50,
         max_backtracks: int = 4,
     ):
         """dt [s] first (or fixed) time step (SC's 5 ms); adaptive: grow/shrink
@@ -136,7 +131,8 @@ class KineticSolver:
         penalty contact must not be stepped through), a larger one is redone
         with a shorter dt; friction_every: anchor refresh period in steps;
         friction_after: friction anchors act only once the relative residual
-        is below this (a start above it releases all anchors first);
+        is below this (a start above it releases all anchors first) or the
+        solve crawls (its residual not halved in ``crawl_window`` steps);
         max_backtracks: halvings of a step that raised the energy before
         the velocity is zeroed or dt shortened (keeps dt, hence the
         factorization, through isolated bad steps)."""
@@ -158,6 +154,7 @@ class KineticSolver:
         self.max_step = max_step
         self.friction_every = max(1, int(friction_every))
         self.friction_after = friction_after
+        self.crawl_window = crawl_window
         self.max_backtracks = max_backtracks
         self._cache = None  # (model, ReducedSystem, IC0 | None)
 
@@ -248,7 +245,6 @@ class KineticSolver:
                                method=self.name, diagnosis="diverged: non-finite initial positions", stats=stats)
 
         best = BestState(model)
-        settled = False
         ke_hist = [0.0, 0.0]
         dv_prev = None
         res_scale = None
@@ -257,22 +253,12 @@ class KineticSolver:
         attempts = 0
         r = np.inf
         E = f = None
-        has_friction = "friction" in getattr(model, "terms", ("friction",)) and hasattr(model, "release_friction")
-        friction_on = "friction" in getattr(model, "terms", ("friction",)) and not has_friction
+        fric: FrictionSchedule | None = None
+        recent: list[float] = []
         mode = self.preconditioner
         while True:
             ta = time.perf_counter()
-            fresh_anchors = False
-            if f is None or (friction_on and it % self.friction_every == 0):
-                tf = time.perf_counter()
-                if friction_on and not settled:
-                    # anchors follow the cloth until it first balances; from then on
-                    # only slips of anchors beyond the static limit
-                    model.update_friction(x)
-                    fresh_anchors = True
-                elif settled and model.slip_friction(x):
-                    fresh_anchors = True
-                stats["friction_s"] += time.perf_counter() - tf
+            if f is None:
                 E, f = energy_and_forces(model, x)
             if not finite(f):
                 diag = f"diverged: non-finite forces at step {it}"
@@ -282,37 +268,29 @@ class KineticSolver:
             r = res_scale(x, f)
             now = time.perf_counter() - t_start
             history.append((now, r))
-            if has_friction and not friction_on:
-                if it == 0 and r > self.friction_after:
-                    model.release_friction()
-                    E, f = energy_and_forces(model, x)
-                    r = res_scale(x, f)
-                    history[-1] = (now, r)
-                if r <= self.friction_after:
-                    # quasi-static friction from here on: anchors where the cloth now rests
-                    friction_on = True
-                    stats["friction_from_step"] = it
-                    model.update_friction(x)
-                    fresh_anchors = True
-                    E, f = energy_and_forces(model, x)
-                    r = res_scale(x, f)
-                    history[-1] = (now, r)
+            recent.append(r)
+            # a crawl (the residual has not halved in crawl_window steps, near rest): a
+            # garment sliding or turning on the body, which friction stops
+            crawling = (len(recent) > self.crawl_window and r > 0.5 * recent[-1 - self.crawl_window]
+                        and r < 1.0)
+            tf = time.perf_counter()
+            if fric is None:
+                fric = FrictionSchedule(model, x, r, tol, self.friction_after, self.friction_every)
+                changed = fric.present
+            else:
+                changed = fric.after_step(it, x, r, crawling)
+            if changed:
+                watch.restart(it)
+                E, f = energy_and_forces(model, x)
+                r = res_scale(x, f)
+                history[-1] = (now, r)
+            stats["friction_s"] += time.perf_counter() - tf
             best.offer(x, r, it)
-            if r <= tol and friction_on and has_friction and not fresh_anchors:
-                # converged for these anchors; it is a Coulomb equilibrium if every anchor
-                # holds within the static limit, otherwise refresh them and go on
-                stats["friction_checks"] += 1
-                settled = True
-                if model.stick_slipping(x):
-                    E, f = energy_and_forces(model, x)
-                    r = res_scale(x, f)
-                excess = model.friction_excess(x)
-                stats["friction_excess_N"] = excess
-                if excess > friction_allowance(model, x, tol):
-                    stats["slipped"] = stats.get("slipped", 0) + model.slip_friction(x)
-                    E, f = energy_and_forces(model, x)
-                    r = res_scale(x, f)
-                    history[-1] = (now, r)
+            if r <= tol and fric.at_balance(x):
+                watch.restart(it)
+                E, f = energy_and_forces(model, x)
+                r = res_scale(x, f)
+                history[-1] = (now, r)
             if r <= tol:
                 converged = True
                 stats["assembly_s"] += time.perf_counter() - ta
@@ -462,6 +440,8 @@ class KineticSolver:
 
         stats["steps"] = it
         stats["dt_final"] = dt
+        if fric is not None:
+            stats.update(friction_checks=fric.checks, slipped=fric.slipped, friction_excess_N=fric.excess)
         if pre is not None:
             stats["ic_shift"] = pre.shift
             stats["ic_retries"] = pre.retries

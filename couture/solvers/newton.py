@@ -18,9 +18,10 @@ the membrane is compressed, so projected-only Newton converges linearly there
 (default skirt: 3.5e-3 after 360 iterations / 30 s); from that state the true
 Hessian reached 1e-4 in 9.5 s (measured, same machine and run conditions).
 
-Friction: anchors act only once the residual is below ``friction_after``,
-are refreshed every ``friction_every`` iterations, and convergence requires
-anchor forces within the static Coulomb limit (see couture.solvers.kinetic).
+Friction: ``common.FrictionSchedule`` (anchors once the residual is below
+``friction_after`` or the solve crawls; slips of anchors beyond mu_s every
+``friction_every`` iterations; at a balance, convergence requires every
+anchor within the static Coulomb limit).
 ``converged`` is decided at return from fresh forces (``common.verdict``);
 a solve that stops early returns the best state it saw.
 """
@@ -36,12 +37,12 @@ import numpy as np
 from .base import ProgressCallback, SolveResult
 from .common import (
     BestState,
+    FrictionSchedule,
     ResidualScale,
     Watch,
     energy_round_off,
     finish,
     finite,
-    friction_allowance,
     pinned_positions,
     true_stiffness,
 )
@@ -155,25 +156,13 @@ class NewtonSolver:
         E = model.energy(x)
         res_scale = ResidualScale(model, x, f)
         r = res_scale(x, f)
-        # friction as in the kinetic solver: anchors only once the frictionless
-        # residual is below friction_after (a fresh placement starts inside the
-        # contact layer), refreshed every friction_every iterations, and a
-        # converged state must hold its anchors within mu_s f_n
-        has_friction = "friction" in getattr(model, "terms", ()) and hasattr(model, "release_friction")
-        friction_on = not has_friction
-        if has_friction and r > self.friction_after:
-            model.release_friction()
-        else:
-            model.update_friction(x)
-            friction_on = True
+        fric = FrictionSchedule(model, x, r, tol, self.friction_after, self.friction_every)
         f = model.forces(x)
         E = model.energy(x)
         r = res_scale(x, f)
         stats["assembly_s"] += time.perf_counter() - ta
         e_mark = E
         best = BestState(model)
-        settled = False
-        allowance = friction_allowance(model, x, tol) if has_friction else 0.0
         while True:
             now = time.perf_counter() - t_start
             history.append((now, r))
@@ -181,21 +170,12 @@ class NewtonSolver:
                 diag = f"diverged: non-finite forces or energy at iteration {it}"
                 break
             best.offer(x, r, it)
-            if r <= tol and has_friction and friction_on:
-                # balanced for these anchors; a Coulomb equilibrium only if every anchor
-                # holds within mu_s f_n: otherwise let those slide and go on
-                stats["friction_checks"] = stats.get("friction_checks", 0) + 1
-                settled = True
-                if model.stick_slipping(x):
-                    f = model.forces(x)
-                    r = res_scale(x, f)
-                stats["friction_excess_N"] = model.friction_excess(x)
-                if stats["friction_excess_N"] > allowance:
-                    stats["slipped"] = stats.get("slipped", 0) + model.slip_friction(x)
-                    f = model.forces(x)
-                    E = model.energy(x)
-                    r = res_scale(x, f)
-                    history.append((now, r))
+            if r <= tol and fric.at_balance(x):
+                watch.restart(it)
+                f = model.forces(x)
+                E = model.energy(x)
+                r = res_scale(x, f)
+                history.append((now, r))
             if r <= tol:
                 converged = True
                 break
@@ -349,27 +329,16 @@ class NewtonSolver:
             if crawling and not true_mode:
                 true_mode = True
                 stats["crawl_switches"] = stats.get("crawl_switches", 0) + 1
-            if (has_friction and not settled and (friction_on or r <= self.friction_after or crawling)
-                    and it % self.friction_every == 0):
-                # anchors follow the cloth (sliding ones at the kinetic limit) until it first
-                # balances; from then on only slips of anchors beyond the static limit (above)
-                friction_on = True
-                model.update_friction(x)
+            if fric.after_step(it, x, r, crawling):
+                watch.restart(it)
                 f = model.forces(x)
                 r = res_scale(x, f)
-            elif settled and it % self.friction_every == 0:
-                # after the first balance, a slide spreads: anchors the slipping cloth drags
-                # beyond mu_s slip in the same solve, not one ring of vertices per balance
-                n_slip = model.slip_friction(x)
-                if n_slip:
-                    stats["slipped"] = stats.get("slipped", 0) + n_slip
-                    f = model.forces(x)
-                    r = res_scale(x, f)
             E = model.energy(x)
             stats["assembly_s"] += time.perf_counter() - ta
 
         stats["steps"] = it
         stats["levenberg_h"] = h
+        stats.update(friction_checks=fric.checks, slipped=fric.slipped, friction_excess_N=fric.excess)
         self._factor = factor
         x, r, converged, diag = finish(model, x, r, "" if converged else diag, best, tol)
         wall = time.perf_counter() - t_start
