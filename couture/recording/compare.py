@@ -63,6 +63,9 @@ class PhysicsRule:
     """match key, golden drape -> ||F_g|| / lambda_min [m]; None: the cap decides"""
     path_fields: dict[str, set[str]] = field(default_factory=dict)
     """topic -> float fields that carry solver state (held to the level's cap only)"""
+    labels: set[str] = field(default_factory=set)
+    """fields a session chooses afresh (``design_id``, a uuid per publish): not
+    compared when two separately made recordings meet (``couture golden make``)"""
 
     def cap(self, level: str) -> float:
         return self.cap_m.get(level, max(self.cap_m.values(), default=math.inf))
@@ -232,7 +235,8 @@ def compare(golden: str, actual: str, *, rtol: float = 1e-5, atol: float = 1e-8,
         else:
             skip = rule.path_fields.get(topic, set()) if rule is not None else set()
             cap = rule.cap(topic.rsplit("/", 1)[-1]) if rule is not None else math.inf
-            _compare_values(g[k], a[k], "$", rtol, atol, tr, k, devs, skip=skip, cap=cap)
+            ignore = IGNORED_FIELDS | (rule.labels if rule is not None else set())
+            _compare_values(g[k], a[k], "$", rtol, atol, tr, k, devs, skip=skip, cap=cap, ignore=ignore)
         if devs:
             tr.failures.extend(f"{k}: {d}" for d in devs)
             firsts.append((g_order[k], f"{k}: {devs[0]}"))
@@ -291,13 +295,14 @@ def compare_drape(key: str, g: DrapeMsg, a: DrapeMsg, rule: PhysicsRule, tr: Top
 
 
 def _compare_values(gv: Any, av: Any, path: str, rtol: float, atol: float, tr: TopicReport, key: str, devs: list[str],
-                    skip: set[str] = frozenset(), cap: float = math.inf) -> None:  # type: ignore[assignment]
+                    skip: set[str] = frozenset(), cap: float = math.inf,  # type: ignore[assignment]
+                    ignore: set[str] = IGNORED_FIELDS) -> None:
     if isinstance(gv, msgspec.Struct) and not isinstance(gv, Array):
         if type(gv) is not type(av):
             devs.append(f"{path}: type {type(av).__name__} != {type(gv).__name__}")
             return
         for name in gv.__struct_fields__:
-            if name in IGNORED_FIELDS:
+            if name in ignore:
                 continue
             if name in skip:  # solver state carried along: only the cap holds
                 _compare_values(getattr(gv, name), getattr(av, name), f"{path}.{name}", 0.0, cap, tr, key, devs)

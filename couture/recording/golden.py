@@ -180,7 +180,7 @@ def make(case: Case) -> Path:
 def changes(case: Case, old: Path, new: Path) -> str:
     """What a re-recording changed, per topic: the largest deviation, and per
     drape the status, residual, iterations and worst vertex, old -> new."""
-    rep = compare_case(case, old, new)
+    rep = compare_case(case, old, new, labels={"design_id"})
     lines = [f"[golden] {case.name}: what changed (old golden -> new recording)"]
     for name, t in sorted(rep.topics.items()):
         its = sum(r.iterations[0] for r in t.drapes), sum(r.iterations[1] for r in t.drapes)
@@ -255,21 +255,23 @@ def compliances(path: Path | str) -> dict[str, float]:
     return out
 
 
-def rule(case: Case, golden: Path | str | None = None) -> PhysicsRule:
+def rule(case: Case, golden: Path | str | None = None, labels: set[str] | None = None) -> PhysicsRule:
     """The physics rule for a case (module doc), compliances from ``golden``."""
     table = compliances(golden or case.mcap)
     return PhysicsRule(tol=solver_tolerances(), cap_m=dict(case.cap_m), floor_m=case.floor_m, safety=case.safety,
                        compliance=lambda key, _g: table.get(key, float("inf")),
-                       path_fields={"mesh/coarse": {"x0"}, "mesh/fine": {"x0"}})
+                       path_fields={"mesh/coarse": {"x0"}, "mesh/fine": {"x0"}}, labels=labels or set())
 
 
 TOPICS = ["mesh/coarse", "mesh/fine", "drape/coarse", "drape/fine"]
 
 
-def compare_case(case: Case, golden: Path | str, actual: Path | str) -> CompareReport:
-    """Compare two recordings of the case under its physics rule."""
+def compare_case(case: Case, golden: Path | str, actual: Path | str, labels: set[str] | None = None) -> CompareReport:
+    """Compare two recordings of the case under its physics rule. A replay
+    re-sends the golden's patterns, so their design ids come back; two makes
+    publish fresh ones (``labels={"design_id"}`` leaves them out)."""
     return compare(str(golden), str(actual), rtol=case.rtol, atol=case.atol, topics=TOPICS,
-                   rule=rule(case, golden))
+                   rule=rule(case, golden, labels))
 
 
 def scaled_inputs(golden: Path | str, out: Path | str, fabric_scale: dict[str, float]) -> Path:
