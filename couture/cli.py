@@ -14,8 +14,10 @@ import shutil
 import sys
 from pathlib import Path
 
-import math
-import pkgutil
+import couture.bench
+
+BENCHES = sorted(m.name for m in pkgutil.iter_modules(couture.bench.__path__))
+"""every module of couture.bench is a benchmark with a main(argv)"""
 
 
 def _parser() -> argparse.ArgumentParser:

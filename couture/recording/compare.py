@@ -8,6 +8,13 @@ publications), the last one counts. Float arrays and float scalars pass
 when ``|actual - golden| <= atol + rtol * |golden|`` element-wise (NaN equals
 NaN); integers, strings and shapes must match exactly. Fields that measure
 time or ordering (``seq``, ``stamp_ns``, ``wall_time_s``) are not compared.
+
+With a :class:`PhysicsRule` (what ``couture golden`` uses) drapes are
+compared as physics, not as solver paths: two converged drapes agree within
+what their residuals allow, iterations and wall times are only reported
+(:func:`compare_drape`); fields a rule names as path-dependent elsewhere (a
+mesh's ``x0``, the previous drape the remesher carried over) are held to the
+rule's hard cap only.
 """
 
 from __future__ import annotations
@@ -15,7 +22,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import msgspec
 import numpy as np
@@ -23,9 +30,80 @@ import numpy as np
 from couture.recording.mcapio import read_session
 from schemas import topics as topic_table
 from schemas.arrays import FLOAT_DTYPES, Array
-from schemas.messages import Message, SchemaError, decode
+from schemas.messages import DrapeMsg, Message, SchemaError, decode
 
 IGNORED_FIELDS = {"seq", "stamp_ns", "wall_time_s"}
+
+
+@dataclass
+class PhysicsRule:
+    """Drapes compared as physics, not paths (STYLE.md "Compare physics, not paths").
+
+    A drape converged to relative residual r (||R_free|| / ||F_g||) lies, to
+    first order, within r ||F_g|| / lambda_min of the equilibrium (||dx||_2 <=
+    ||K^-1|| ||R||, lambda_min the smallest eigenvalue of the free Hessian
+    there). Two converged drapes of the same design are then within
+    ``(r_golden + r_actual) * compliance``, compliance = ||F_g|| / lambda_min
+    [m] measured on the golden drape (``compliance(key, golden) -> m``). The
+    estimate is first order, and a soft drape is not linear over centimetres
+    (measured: a coarse drape, SuperLU vs PARDISO, 1.5x the estimate), so
+    the bound on the worst vertex is ``floor_m + safety * estimate``, at most
+    the level's cap (a near-free mode, lambda_min -> 0, would allow anything)."""
+
+    tol: dict[str, float]
+    """level -> relative residual tolerance the solver node converges to; a
+    converged drape above it fails (on either side)"""
+    cap_m: dict[str, float]
+    """level -> [m] never allowed, whatever residuals and compliance say"""
+    floor_m: float = 1e-4
+    """[m] always allowed: float32 positions (~30 nm here) and round-off in the solve"""
+    safety: float = 2.0
+    """factor on the first-order estimate (nonlinearity)"""
+    compliance: Callable[[str, DrapeMsg], float] | None = None
+    """match key, golden drape -> ||F_g|| / lambda_min [m]; None: the cap decides"""
+    path_fields: dict[str, set[str]] = field(default_factory=dict)
+    """topic -> float fields that carry solver state (held to the level's cap only)"""
+    labels: set[str] = field(default_factory=set)
+    """fields a session chooses afresh (``design_id``, a uuid per publish): not
+    compared when two separately made recordings meet (``couture golden make``)"""
+
+    def cap(self, level: str) -> float:
+        return self.cap_m.get(level, max(self.cap_m.values(), default=math.inf))
+
+    def bound(self, key: str, golden: DrapeMsg, actual: DrapeMsg) -> tuple[float, float]:
+        """(bound [m], compliance [m]) for this pair of drapes."""
+        c = self.compliance(key, golden) if self.compliance is not None else math.inf
+        r = _finite(golden.residual) + _finite(actual.residual)
+        b = self.floor_m + self.safety * r * c if math.isfinite(c) else math.inf
+        return min(self.cap(golden.level), b), c
+
+
+def _finite(v: float) -> float:
+    return v if math.isfinite(v) else math.inf
+
+
+@dataclass
+class DrapeRow:
+    """One final drape, golden vs actual: what was compared and what was only reported."""
+
+    key: str
+    level: str
+    generation: int
+    converged: tuple[bool, bool]
+    """golden, actual"""
+    residual: tuple[float, float]
+    tol: float
+    iterations: tuple[int, int]
+    """reported, never compared"""
+    wall_time_s: tuple[float, float]
+    """reported, never compared"""
+    worst_vertex: int = -1
+    deviation_m: float = 0.0
+    """[m] largest |x_actual - x_golden| over vertices (the worst vertex's)"""
+    bound_m: float = math.inf
+    compliance_m: float = math.inf
+    """||F_g|| / lambda_min of the golden drape [m]"""
+    ok: bool = True
 
 
 @dataclass
@@ -42,6 +120,8 @@ class TopicReport:
     """largest |actual - golden| / |golden| over float fields"""
     worst_where: str = ""
     failures: list[str] = field(default_factory=list)
+    drapes: list[DrapeRow] = field(default_factory=list)
+    """with a PhysicsRule: one row per final drape"""
 
     @property
     def ok(self) -> bool:
@@ -56,6 +136,8 @@ class CompareReport:
     atol: float
     topics: dict[str, TopicReport] = field(default_factory=dict)
     first_deviation: str = ""
+    rule: str = ""
+    """the drape rule in words, '' when drapes were compared field by field"""
 
     @property
     def ok(self) -> bool:
@@ -74,6 +156,19 @@ class CompareReport:
         for name, t in sorted(self.topics.items()):
             lines.append(f"{name:<24} {t.matched:>7} {len(t.missing):>7} {len(t.extra):>5} {t.worst_abs:>11.3e} "
                          f"{t.worst_rel:>11.3e}  {'ok' if t.ok else 'FAIL'}" + (f"  ({t.worst_where})" if t.worst_where else ""))
+        rows = [r for t in self.topics.values() for r in t.drapes]
+        if rows:
+            lines.append(f"drapes ({self.rule}); iterations and wall times reported, not compared:")
+            lines.append(f"  {'drape':<14} {'gen':>3} {'status g/a':<11} {'residual g/a (tol)':<26} {'iters g/a':>9} "
+                         f"{'wall g/a [s]':>12} {'vertex':>6} {'dev [mm]':>8} {'bound':>7}")
+            for r in sorted(rows, key=lambda r: (r.generation, r.level)):
+                st = "/".join("conv" if c else "stop" for c in r.converged)
+                res = f"{r.residual[0]:.1e}/{r.residual[1]:.1e} ({r.tol:.0e})"
+                its = f"{r.iterations[0]}/{r.iterations[1]}"
+                wall = f"{r.wall_time_s[0]:.2f}/{r.wall_time_s[1]:.2f}"
+                lines.append(f"  drape/{r.level:<8} {r.generation:>3} {st:<11} {res:<26} {its:>9} {wall:>12} "
+                             f"{r.worst_vertex:>6} {r.deviation_m * 1e3:>8.3f} {r.bound_m * 1e3:>7.3f}"
+                             f"{'' if r.ok else '  FAIL'}")
         if not self.topics:
             lines.append("(no output messages in the golden recording)")
         if self.first_deviation:
@@ -109,11 +204,17 @@ def _outputs(path: str, topics: list[str]) -> tuple[dict[str, Message], dict[str
 
 
 def compare(golden: str, actual: str, *, rtol: float = 1e-5, atol: float = 1e-8,
-            topics: list[str] | None = None) -> CompareReport:
+            topics: list[str] | None = None, rule: PhysicsRule | None = None) -> CompareReport:
     """Compare output messages of two recordings (see module doc); ``topics``
-    defaults to the compared topics of the table."""
+    defaults to the compared topics of the table. With ``rule``, final drapes
+    are compared by :func:`compare_drape` and ``rtol``/``atol`` apply to the
+    other fields and topics."""
     topics = topics or topic_table.compared_topics()
     rep = CompareReport(golden=golden, actual=actual, rtol=rtol, atol=atol)
+    if rule is not None:
+        caps = ", ".join(f"{lv} {c * 1e3:g} mm" for lv, c in rule.cap_m.items())
+        rep.rule = (f"converged alike, residual <= tol on both sides, worst vertex <= {rule.floor_m * 1e3:g} mm + "
+                    f"{rule.safety:g} (r_golden + r_actual) ||F_g||/lambda_min, at most {caps}")
     g, g_order, g_bad = _outputs(golden, topics)
     a, _, a_bad = _outputs(actual, topics)
     if g_bad:
@@ -128,7 +229,14 @@ def compare(golden: str, actual: str, *, rtol: float = 1e-5, atol: float = 1e-8,
             continue
         tr.matched += 1
         devs: list[str] = []
-        _compare_values(g[k], a[k], "$", rtol, atol, tr, k, devs)
+        gm, am = g[k], a[k]
+        if rule is not None and isinstance(gm, DrapeMsg) and isinstance(am, DrapeMsg) and gm.level != "predicted":
+            devs = compare_drape(k, gm, am, rule, tr)
+        else:
+            skip = rule.path_fields.get(topic, set()) if rule is not None else set()
+            cap = rule.cap(topic.rsplit("/", 1)[-1]) if rule is not None else math.inf
+            ignore = IGNORED_FIELDS | (rule.labels if rule is not None else set())
+            _compare_values(g[k], a[k], "$", rtol, atol, tr, k, devs, skip=skip, cap=cap, ignore=ignore)
         if devs:
             tr.failures.extend(f"{k}: {d}" for d in devs)
             firsts.append((g_order[k], f"{k}: {devs[0]}"))
@@ -144,13 +252,60 @@ def compare(golden: str, actual: str, *, rtol: float = 1e-5, atol: float = 1e-8,
     return rep
 
 
-def _compare_values(gv: Any, av: Any, path: str, rtol: float, atol: float, tr: TopicReport, key: str, devs: list[str]) -> None:
+def compare_drape(key: str, g: DrapeMsg, a: DrapeMsg, rule: PhysicsRule, tr: TopicReport) -> list[str]:
+    """Physics, not paths: the same convergence status; a converged drape's
+    residual within the level's tolerance on both sides; every vertex within
+    ``rule.bound``. Iterations and wall times go into the report's row only.
+    Returns the deviations (each names topic, generation and worst vertex)."""
+    where = f"{key.split(' ', 1)[0]} generation {g.generation}"
+    tol = rule.tol.get(g.level, math.inf)
+    row = DrapeRow(key=key, level=g.level, generation=g.generation, converged=(g.converged, a.converged),
+                   residual=(g.residual, a.residual), tol=tol, iterations=(g.iterations, a.iterations),
+                   wall_time_s=(g.wall_time_s, a.wall_time_s))
+    tr.drapes.append(row)
+    devs: list[str] = []
+    if g.converged != a.converged:
+        devs.append(f"{where}: {'converged' if a.converged else 'stopped (' + a.diagnosis + ')'} vs golden "
+                    f"{'converged' if g.converged else 'stopped (' + g.diagnosis + ')'}")
+    for side, m in (("golden", g), ("actual", a)):
+        if m.converged and not m.residual <= tol:
+            devs.append(f"{where}: {side} says converged at residual {m.residual:.3e} > tol {tol:.0e}")
+    gx, ax = g.x.numpy().astype(np.float64), a.x.numpy().astype(np.float64)
+    if gx.shape != ax.shape:
+        devs.append(f"{where}: x shape {ax.shape} != golden {gx.shape}")
+    else:
+        dist = np.linalg.norm(ax - gx, axis=1) if gx.size else np.zeros(0)
+        dist[~np.isfinite(dist)] = np.inf
+        if dist.size:
+            i = int(np.argmax(dist))
+            row.worst_vertex, row.deviation_m = i, float(dist[i])
+            _note(tr, row.deviation_m, 0.0, f"{where} vertex {i}")
+        if g.converged and a.converged:
+            row.bound_m, row.compliance_m = rule.bound(key, g, a)
+            why = (f"{rule.floor_m * 1e3:g} mm + {rule.safety:g} x ({g.residual:.2e} + {a.residual:.2e}) x "
+                   f"{row.compliance_m:.3g} m, cap {rule.cap(g.level) * 1e3:g} mm")
+        else:  # a stopped solve's state is wherever its path ended: only the cap holds
+            row.bound_m = rule.cap(g.level)
+            why = f"cap {row.bound_m * 1e3:g} mm (not both converged)"
+        if row.deviation_m > row.bound_m:
+            devs.append(f"{where}: worst vertex {row.worst_vertex} deviates {row.deviation_m * 1e3:.3f} mm > bound "
+                        f"{row.bound_m * 1e3:.3f} mm ({why}); {int((dist > row.bound_m).sum())} vertices off")
+    row.ok = not devs
+    return devs
+
+
+def _compare_values(gv: Any, av: Any, path: str, rtol: float, atol: float, tr: TopicReport, key: str, devs: list[str],
+                    skip: set[str] = frozenset(), cap: float = math.inf,  # type: ignore[assignment]
+                    ignore: set[str] = IGNORED_FIELDS) -> None:
     if isinstance(gv, msgspec.Struct) and not isinstance(gv, Array):
         if type(gv) is not type(av):
             devs.append(f"{path}: type {type(av).__name__} != {type(gv).__name__}")
             return
         for name in gv.__struct_fields__:
-            if name in IGNORED_FIELDS:
+            if name in ignore:
+                continue
+            if name in skip:  # solver state carried along: only the cap holds
+                _compare_values(getattr(gv, name), getattr(av, name), f"{path}.{name}", 0.0, cap, tr, key, devs)
                 continue
             _compare_values(getattr(gv, name), getattr(av, name), f"{path}.{name}", rtol, atol, tr, key, devs)
         return

@@ -4,7 +4,9 @@ A *case* is ``recordings/<case>.json``::
 
     {"solvers": ["newton"],              # solver nodes to run
      "designs": ["examples/small_skirt.json", {"sloper": {"params": {"length": 0.7}}}, ...],
-     "rtol": 1e-3, "atol": 2e-3,        # float tolerances for compare (positions in m)
+     "floor_m": 1e-4, "safety": 2.0,     # drapes: bound = floor_m + safety (r_g + r_a) ||F_g||/lambda_min [m]
+     "cap_m": {"coarse": 0.03, "fine": 0.01},  # ... at most this per level [m]
+     "rtol": 1e-3, "atol": 2e-3,        # meshes: float tolerances (positions in m), integers exact
      "timeout_s": 120}
 
 Each entry of ``designs`` is a pattern file (relative to the case file or to
@@ -14,8 +16,21 @@ Each entry of ``designs`` is a pattern file (relative to the case file or to
 time, waiting for each one's final drape/fine, and keeps the recording as
 ``recordings/<case>.mcap``. ``check`` starts the same nodes with a recorder,
 replays the golden file's inputs in lockstep (``couture replay --lockstep``)
-and compares the outputs with the golden ones: floats within the case's
-tolerances, integers exactly, the worst deviation per topic reported.
+and compares the outputs with the golden ones, physics not paths
+(:func:`rule`, STYLE.md): each final drape has the golden's convergence
+status, a converged one a residual within the solver node's tolerance, and
+every vertex within ``floor_m + safety * (r_golden + r_actual) * ||F_g|| /
+lambda_min`` of the golden, at most the level's ``cap_m`` (lambda_min: the
+smallest eigenvalue of the exact free Hessian at the golden drape,
+:func:`compliances`). Iterations and wall
+times are reported, never compared. Meshes (what the remesher drafts) are
+compared field by field within ``rtol``/``atol``, integers exactly; their
+``x0`` carries the previous drape over, so only the cap holds there.
+
+``make`` records into a temporary file, replaces the golden, and prints what
+changed against the old one (:func:`changes`: per topic the largest
+deviation, per drape the iterations old -> new). ``python -m
+couture.recording.golden`` is the same command as ``couture golden``.
 """
 
 from __future__ import annotations
@@ -33,7 +48,7 @@ import msgspec
 
 from couture import supervisor
 from couture.bus import BusConfig
-from couture.recording.compare import CompareReport, compare
+from couture.recording.compare import CompareReport, PhysicsRule, compare
 from couture.recording.replay import ReplayConfig
 from couture.recording.replay import main as replay
 from schemas.design import Design
@@ -52,6 +67,13 @@ class Case:
     designs: list = field(default_factory=list)
     rtol: float = 1e-3
     atol: float = 2e-3
+    """meshes only: float fields within atol + rtol * |golden| [field unit]"""
+    floor_m: float = 1e-4
+    """[m] a drape's vertices may always deviate this much (PhysicsRule.floor_m)"""
+    safety: float = 2.0
+    """factor on the first-order residual bound (PhysicsRule.safety)"""
+    cap_m: dict[str, float] = field(default_factory=lambda: {"coarse": 0.03, "fine": 0.01})
+    """level -> [m] never more than this (PhysicsRule.cap_m)"""
     timeout_s: float = 120.0
 
     @property
@@ -64,11 +86,11 @@ def load_case(name_or_path: str) -> Case:
     if not p.suffix:
         p = RECORDINGS / f"{name_or_path}.json"
     spec = json.loads(p.read_text())
-    unknown = set(spec) - {"solvers", "designs", "rtol", "atol", "timeout_s", "doc"}
+    keys = {"solvers", "designs", "rtol", "atol", "floor_m", "safety", "cap_m", "timeout_s"}
+    unknown = set(spec) - keys - {"doc"}
     if unknown:
         raise ValueError(f"{p}: unknown keys {sorted(unknown)}")
-    return Case(name=p.stem, path=p, solvers=spec.get("solvers", ["newton"]), designs=spec["designs"],
-                rtol=spec.get("rtol", 1e-3), atol=spec.get("atol", 2e-3), timeout_s=spec.get("timeout_s", 120.0))
+    return Case(name=p.stem, path=p, **{k: spec[k] for k in keys if k in spec})
 
 
 def _merge(base: dict, patch: dict) -> dict:
@@ -134,12 +156,15 @@ def sup_solvers(sup: supervisor.Supervisor) -> list[str]:
 
 
 def make(case: Case) -> Path:
-    """Record the case's session into ``case.mcap`` (overwrites)."""
+    """Record the case's session into ``case.mcap``: into a temporary file
+    first, which replaces the golden only once the session is complete (a
+    make that fails keeps the old golden)."""
     from couture.client import Client
 
     designs = case_designs(case)
     out = case.mcap
-    with supervisor.Supervisor(supervisor.SupervisorConfig(bus=_session(), nodes=_nodes(case, out))) as sup:
+    new = out.with_name(f".{out.stem}.new.mcap")
+    with supervisor.Supervisor(supervisor.SupervisorConfig(bus=_session(), nodes=_nodes(case, new))) as sup:
         _wait_recorder(sup)
         with Client(bus=sup.child_bus) as client:
             for i, d in enumerate(designs):
@@ -148,36 +173,163 @@ def make(case: Case) -> Path:
                 print(f"[golden] {case.name}: design {i} (generation {gen}) residual {drape.residual:.2e} "
                       f"{'converged' if drape.converged else drape.diagnosis}", file=sys.stderr)
             time.sleep(0.5)  # let the recorder take the last messages
+    new.replace(out)
     return out
 
 
-def check(case: Case, actual: Path | None = None) -> CompareReport:
-    """Replay the golden inputs into fresh nodes and compare their outputs."""
+def changes(case: Case, old: Path, new: Path) -> str:
+    """What a re-recording changed, per topic: the largest deviation, and per
+    drape the status, residual, iterations and worst vertex, old -> new."""
+    rep = compare_case(case, old, new, labels={"design_id"})
+    lines = [f"[golden] {case.name}: what changed (old golden -> new recording)"]
+    for name, t in sorted(rep.topics.items()):
+        its = sum(r.iterations[0] for r in t.drapes), sum(r.iterations[1] for r in t.drapes)
+        lines.append(f"  {name:<14} max deviation {t.worst_abs * 1e3:8.3f} mm"
+                     + (f"  iterations {its[0]} -> {its[1]}" if t.drapes else "")
+                     + (f"  ({t.worst_where})" if t.worst_where else "")
+                     + (f"  {len(t.missing)} missing, {len(t.extra)} new" if t.missing or t.extra else ""))
+    lines.append(rep.text())
+    verdict = "the new golden agrees with the old one" if rep.ok else "the physics changed (or the session did)"
+    lines.append(f"[golden] {case.name}: {verdict}")
+    return "\n".join(lines)
+
+
+def solver_tolerances() -> dict[str, float]:
+    """level -> relative residual the solver node converges to (the service's default)."""
+    from couture.solvers.service import SolveService
+
+    return dict(SolveService(method="newton").tol)
+
+
+def compliances(path: Path | str) -> dict[str, float]:
+    """Match key of each final drape in a recording -> ||F_g|| / lambda_min [m]:
+    the cloth model built as the solver node builds it (the recorded mesh and
+    the design of its pattern message), its exact free Hessian at the drape
+    (not the PSD-projected one the solvers factor: projection stiffens the
+    compressed membrane, and the bound needs the true soft modes), the smallest
+    eigenvalue by shift-invert Lanczos. A drape converged to relative residual
+    r is within about r times this of the equilibrium; a non-positive
+    lambda_min gives inf (the cap decides)."""
+    import numpy as np
+    import scipy.sparse.linalg as spla
+
+    from couture.cloth.model import ClothModel
+    from couture.recording.compare import _match_key
+    from couture.recording.mcapio import read_session
+    from couture.solvers.service import scene_from_design
+    from schemas.convert import msg_to_mesh
+    from schemas.messages import DrapeMsg, MeshMsg, PatternMsg, decode
+
+    designs: dict[str, Design] = {}
+    meshes: dict[tuple[str, int], MeshMsg] = {}
+    drapes: dict[str, DrapeMsg] = {}
+    for rec in read_session(str(path), ["pattern", "mesh/coarse", "mesh/fine", "drape/coarse", "drape/fine"]):
+        if rec.topic == "pattern":
+            p = decode(rec.data, PatternMsg)
+            designs[p.design_id] = p.design
+        elif rec.topic.startswith("mesh/"):
+            mm = decode(rec.data, MeshMsg)
+            if not mm.unchanged:
+                meshes[(mm.level, mm.mesh_generation)] = mm
+        else:
+            d = decode(rec.data, DrapeMsg)
+            if d.final:
+                drapes[_match_key(rec.topic, d)] = d
+    out: dict[str, float] = {}
+    for key, d in drapes.items():
+        m = meshes.get((d.level, d.mesh_generation))
+        design = designs.get(m.design_id) if m is not None else None
+        if m is None or design is None:
+            out[key] = float("inf")
+            continue
+        model = ClothModel(msg_to_mesh(m), design.fabric, scene_from_design(design))
+        x = d.x.numpy().astype(np.float64)
+        free = model.free_dofs
+        K = model.stiffness(x, project=False)[free][:, free]
+        try:
+            lmin = float(spla.eigsh(K, k=1, sigma=-1e-6, which="LM", return_eigenvectors=False)[0])
+        except Exception as e:  # noqa: BLE001 - no bound rather than no check
+            log.warning("%s: no lambda_min (%s); the cap decides", key, e)
+            lmin = 0.0
+        out[key] = model.residual_denominator(x) / lmin if lmin > 0 else float("inf")
+    return out
+
+
+def rule(case: Case, golden: Path | str | None = None, labels: set[str] | None = None) -> PhysicsRule:
+    """The physics rule for a case (module doc), compliances from ``golden``."""
+    table = compliances(golden or case.mcap)
+    return PhysicsRule(tol=solver_tolerances(), cap_m=dict(case.cap_m), floor_m=case.floor_m, safety=case.safety,
+                       compliance=lambda key, _g: table.get(key, float("inf")),
+                       path_fields={"mesh/coarse": {"x0"}, "mesh/fine": {"x0"}}, labels=labels or set())
+
+
+TOPICS = ["mesh/coarse", "mesh/fine", "drape/coarse", "drape/fine"]
+
+
+def compare_case(case: Case, golden: Path | str, actual: Path | str, labels: set[str] | None = None) -> CompareReport:
+    """Compare two recordings of the case under its physics rule. A replay
+    re-sends the golden's patterns, so their design ids come back; two makes
+    publish fresh ones (``labels={"design_id"}`` leaves them out)."""
+    return compare(str(golden), str(actual), rtol=case.rtol, atol=case.atol, topics=TOPICS,
+                   rule=rule(case, golden, labels))
+
+
+def scaled_inputs(golden: Path | str, out: Path | str, fabric_scale: dict[str, float]) -> Path:
+    """A copy of the golden's replayed inputs with every pattern's fabric
+    fields multiplied (``{"bend_stiffness": 1.5}``): a deliberate physics change
+    made where a designer would make it, in the design, so that a test can
+    show the comparison catches it."""
+    from couture.recording.mcapio import SessionWriter, read_session
+    from schemas import topics as topic_table
+    from schemas.messages import PatternMsg, decode, encode
+
+    w = SessionWriter(str(out))
+    try:
+        for rec in read_session(str(golden), topic_table.replayed_topics()):
+            data = rec.data
+            if rec.topic == "pattern":
+                msg = decode(data, PatternMsg)
+                changes = {k: getattr(msg.design.fabric, k) * f for k, f in fabric_scale.items()}
+                design = msgspec.structs.replace(msg.design, fabric=msgspec.structs.replace(msg.design.fabric, **changes))
+                data = encode(msgspec.structs.replace(msg, design=design))
+            w.write(rec.key, data, rec.log_time, schema=rec.schema or None)
+    finally:
+        w.close()
+    return Path(out)
+
+
+def check(case: Case, actual: Path | None = None, fabric_scale: dict[str, float] | None = None) -> CompareReport:
+    """Replay the golden inputs into fresh nodes and compare their outputs
+    with the golden ones; ``fabric_scale`` replays a physically different
+    session instead (:func:`scaled_inputs`), which must fail."""
     if not case.mcap.exists():
         raise FileNotFoundError(f"{case.mcap}: no golden recording; make it with `couture golden make {case.name}`")
-    tmp = None
-    if actual is None:
-        tmp = tempfile.TemporaryDirectory(prefix="couture-golden-")
-        actual = Path(tmp.name) / f"{case.name}.mcap"
-    try:
-        with supervisor.Supervisor(supervisor.SupervisorConfig(bus=_session(), nodes=_nodes(case, actual))) as sup:
-            _wait_recorder(sup)
-            replay(ReplayConfig(path=str(case.mcap), bus=sup.child_bus, rate=0.0, lockstep=True,
-                                lockstep_timeout_s=case.timeout_s))
-            time.sleep(0.5)
-        return compare(str(case.mcap), str(actual), rtol=case.rtol, atol=case.atol,
-                       topics=["mesh/coarse", "mesh/fine", "drape/coarse", "drape/fine"])
-    finally:
-        if tmp is not None:
-            tmp.cleanup()
+    with tempfile.TemporaryDirectory(prefix="couture-golden-") as tmp:
+        if actual is None:
+            actual = Path(tmp) / f"{case.name}.mcap"
+        inputs = scaled_inputs(case.mcap, Path(tmp) / "inputs.mcap", fabric_scale) if fabric_scale else case.mcap
+        _run(case, inputs, actual)
+        return compare_case(case, case.mcap, actual)
+
+
+def _run(case: Case, inputs: Path, record: Path) -> None:
+    """Fresh nodes recording into ``record``; the inputs replayed in lockstep."""
+    with supervisor.Supervisor(supervisor.SupervisorConfig(bus=_session(), nodes=_nodes(case, record))) as sup:
+        _wait_recorder(sup)
+        replay(ReplayConfig(path=str(inputs), bus=sup.child_bus, rate=0.0, lockstep=True,
+                            lockstep_timeout_s=case.timeout_s))
+        time.sleep(0.5)
 
 
 def main(argv: list[str] | None = None) -> int:
     import argparse
 
     p = argparse.ArgumentParser(prog="couture golden", description=__doc__.split("\n\n")[0])
-    p.add_argument("action", choices=["make", "check", "list"])
+    p.add_argument("action", choices=["make", "check", "list"],
+                   help="make: re-record (prints what changed against the old golden); "
+                        "check: replay into fresh nodes and compare; list: the cases")
     p.add_argument("cases", nargs="*", help="case names (recordings/<case>.json); default: all")
+    p.add_argument("--json", default=None, help="check: write the reports here (one JSON object per case name)")
     a = p.parse_args(argv)
     names = a.cases or sorted(f.stem for f in RECORDINGS.glob("*.json"))
     if a.action == "list":
@@ -186,12 +338,26 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{n}: {len(c.designs)} designs, solvers {c.solvers}, golden {'present' if c.mcap.exists() else 'missing'}")
         return 0
     failed = 0
+    reports = {}
     for n in names:
         case = load_case(n)
         if a.action == "make":
-            print(f"[golden] wrote {make(case)}", file=sys.stderr)
+            with tempfile.TemporaryDirectory(prefix="couture-golden-") as tmp:
+                old = Path(tmp) / "old.mcap"
+                if case.mcap.exists():
+                    old.write_bytes(case.mcap.read_bytes())
+                print(f"[golden] wrote {make(case)}", file=sys.stderr)
+                print(changes(case, old, case.mcap) if old.exists() else f"[golden] {n}: new golden (no old one)")
         else:
             rep = check(case)
             print(rep.text())
+            reports[n] = rep.to_json()
             failed += not rep.ok
+    if a.json:
+        Path(a.json).write_text(json.dumps(reports, indent=2, default=str))
     return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    sys.exit(main())

@@ -13,6 +13,7 @@ the last prediction. Progress drapes go out every ``progress_period_s``.
 from __future__ import annotations
 
 import logging
+import os
 import threading
 from dataclasses import dataclass, field
 
@@ -29,6 +30,8 @@ from schemas.convert import msg_to_mesh
 
 log = logging.getLogger("solver")
 
+BACKEND_ENV = "COUTURE_SOLVER_BACKEND"
+
 
 @dataclass
 class Config:
@@ -43,10 +46,27 @@ class Config:
     """[s] cap on each level's solve (coarse and fine alike); None: the
     service's defaults. A capped level is published unconverged, with its
     diagnosis, like any other stopped solve."""
+    backend: str = field(default_factory=lambda: os.environ.get(BACKEND_ENV, ""))
+    """direct linear-solver backend of the kinetic and Newton solvers ('pardiso',
+    'pardiso32', 'cholmod', 'splu'); '' keeps the solver's own choice ('auto').
+    Defaults to $COUTURE_SOLVER_BACKEND, so a test can run every solver node of a
+    session on SuperLU without a flag per node."""
+
+
+def solver_options(config: Config) -> dict:
+    """Constructor options for ``get_solver(config.solver, ...)``."""
+    if config.backend and config.solver in ("kinetic", "newton"):
+        return {"backend": config.backend}
+    return {}
 
 
 def main(config: Config) -> None:
     service = SolveService(method=config.solver)
+    if solver_options(config):
+        # SolveService builds its solver with defaults; a backend chosen for this
+        # node replaces it before any solve (no service option exists for it)
+        service.solver = get_solver(config.solver, **solver_options(config))
+        log.info("%s solver on the %r backend", config.solver, config.backend)
     if config.max_seconds is not None:
         service.max_seconds = {level: float(config.max_seconds) for level in service.max_seconds}
     with Node(config.name, config.bus, kind="solver") as node:
@@ -136,7 +156,7 @@ def main(config: Config) -> None:
                 mesh = lm.mesh
             model = ClothModel(mesh, design.fabric, scene_from_design(design))
             x0 = req.x_warm.numpy() if req.x_warm is not None else mesh.x0
-            r = get_solver(config.solver).solve(model, np.array(x0), tol=req.tol, max_iters=req.max_iters,
+            r = get_solver(config.solver, **solver_options(config)).solve(model, np.array(x0), tol=req.tol, max_iters=req.max_iters,
                                                 max_seconds=req.max_seconds)
             return SolveResultMsg(method=config.solver, level=req.level, mesh_generation=req.mesh_generation,
                                   x=r.x, residual=r.residual, iterations=r.iterations, wall_time_s=r.wall_time,
