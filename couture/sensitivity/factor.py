@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg as sla
@@ -42,14 +43,20 @@ from couture.cloth.model import ClothModel
 
 from .bending import length_scale, model_bending, model_lame
 
-try:  # the solvers' direct backends (CHOLMOD/PARDISO when installed, SuperLU always)
-    from couture.solvers.linalg import FactorizationError, available_backends as _available_backends
+if TYPE_CHECKING:  # the type checker sees the solvers' names; at run time they may be missing
+    from couture.solvers.linalg import FactorizationError
+    from couture.solvers.linalg import available_backends as _available_backends
     from couture.solvers.linalg import factorize as _solvers_factorize
-except Exception:  # pragma: no cover - solvers package not importable
-    class FactorizationError(RuntimeError):
-        pass
+else:
+    try:  # the solvers' direct backends (CHOLMOD/PARDISO when installed, SuperLU always)
+        from couture.solvers.linalg import FactorizationError
+        from couture.solvers.linalg import available_backends as _available_backends
+        from couture.solvers.linalg import factorize as _solvers_factorize
+    except Exception:  # pragma: no cover - solvers package not importable
+        class FactorizationError(RuntimeError):
+            pass
 
-    _solvers_factorize = None
+        _solvers_factorize = None
 
 
 class _SpluFactor:
@@ -346,7 +353,7 @@ class SensitivityFactor:
         lam = np.inf
         for _ in range(iters):
             w = fac.solve(v)
-            nw = np.linalg.norm(w)
+            nw = float(np.linalg.norm(w))
             if not np.isfinite(nw) or nw == 0:
                 return 0.0
             lam = 1.0 / nw
