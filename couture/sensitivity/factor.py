@@ -178,15 +178,17 @@ def rigid_modes(x: np.ndarray) -> np.ndarray:
 
 def contact_curvature(model: ClothModel, x: np.ndarray, h: float = 1e-6) -> sp.csr_matrix | None:
     """The body-curvature part of the contact Hessian, ``-k_c pen Hess(phi)``
-    (3n, 3n), that couture.cloth's Gauss-Newton contact stiffness drops.
+    (3n, 3n), for a body without ``phi_hess``: couture.cloth's exact Hessian
+    (``stiffness(project=False)``) includes it for bodies that give their SDF
+    Hessian, and leaves it out for the others.
 
     Without it a rigid spin of a garment on a frictionless body of revolution
     is not in the kernel of K, and sensitivities on curved bodies are off by
     O(contact pressure / radius). Hess(phi) by central differences of the
-    body's gradient (exact for analytic bodies up to O(h²); for grid SDFs the
-    Hessian of the interpolant). None when the model has no contact term.
+    body's gradient (exact for analytic bodies up to O(h²)). None when the
+    model has no contact term or its body has ``phi_hess``.
     """
-    if "contact" not in model.terms or model.body is None:
+    if "contact" not in model.terms or model.body is None or hasattr(model.body, "phi_hess"):
         return None
     phi, _ = model.body.phi_grad(x)
     pen = model.contact_offset - np.asarray(phi)
