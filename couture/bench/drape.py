@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from couture.bench import add_out_arg
+from couture.bench import add_out_arg, write_results
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "pattern" / "examples"
 TOL = 1e-4
@@ -474,10 +474,9 @@ def main(argv: list[str] | None = None) -> int:
         "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
                     "load_average_at_end": list(os.getloadavg())},
         "commit": _commit(),
-        "args": vars(a), "cases": cases, "sweep": sw,
+        "args": dict(vars(a), out=str(a.out)), "cases": cases, "sweep": sw,
     }
-    (out_dir / "drape.json").write_text(json.dumps(report, indent=1))
-    print(f"wrote {out_dir / 'drape.json'} and plots in {out_dir}")
+    print(f"wrote {write_results(out_dir, 'drape', report)} and plots in {out_dir}")
     return 0
 
 
