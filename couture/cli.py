@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import enum
 import importlib
 import json
@@ -293,7 +292,7 @@ def drape(pattern: str, out: str, *, bus, timeout: float = 240.0, solver: str = 
 
     from couture import supervisor
     from couture.client import Client, PatternRejected, load_design
-    from couture.solvers.service import SolveService
+    from couture.solvers.service import DEFAULT_TOL
 
     if not verbose:
         # ezdxf and the supervisor log at INFO; the result lines say what matters
@@ -305,7 +304,7 @@ def drape(pattern: str, out: str, *, bus, timeout: float = 240.0, solver: str = 
         return DrapeExit.BAD_DESIGN
     out_dir = Path(out)
     # the tolerances the solver node stops at, for the bars' scale only
-    tol = {f.name: f.default_factory() for f in dataclasses.fields(SolveService) if f.name == "tol"}["tol"]
+    tol = dict(DEFAULT_TOL)
     progress = _DrapeProgress(tol)
     with ExitStack() as stack:
         if bus.connect:

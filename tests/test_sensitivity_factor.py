@@ -105,8 +105,9 @@ def test_sheet_columns_match_finite_differences(sheet):
 
 
 def test_sphere_drape_columns_match_finite_differences(strip):
-    """Contact on a curved body: the factor adds the body-curvature term the
-    model's Gauss-Newton contact Hessian drops."""
+    """Contact on a curved body: the columns include the body-curvature term
+    of the contact Hessian (the model's own, the sphere giving its SDF Hessian;
+    counted once)."""
     m, x = strip
     psi = stretch_psi(m.X)
     f = SensitivityFactor(m, x, bend_floor=False)

@@ -13,7 +13,6 @@ import os
 
 import numpy as np
 import pytest
-
 from browser.chromium import ARTIFACTS, available, browser_page, stable_camera, wait_camera, wait_until
 
 pytestmark = [pytest.mark.browser,

@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from couture.bench import add_out_arg
+from couture.bench import add_out_arg, write_results
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "pattern" / "examples"
 TOL = 1e-4
@@ -167,7 +167,9 @@ def drape_case(design: Any, method: str, *, max_seconds: float = 120.0, levels: 
     service.max_seconds = {level: float(max_seconds) for level in service.max_seconds}
     service.set_design(design)
     for up in updates:
-        prolong = (up.fine_parent_tri, up.fine_bary) if up.level == "fine" else None
+        prolong = None
+        if up.fine_parent_tri is not None and up.fine_bary is not None:  # the fine level's, as the solver node takes it
+            prolong = (up.fine_parent_tri, up.fine_bary)
         service.set_mesh(up.level, up.mesh, up.mesh_generation, prolong)
 
     ends: dict[str, float] = {}
@@ -244,7 +246,7 @@ def sweep_one(fine_vertices: int, method: str, max_seconds: float,
 def sweep(sizes: list[int], method: str, max_seconds: float, timeout_s: float,
           design_name: str = "default_skirt") -> dict[str, Any]:
     """Every size in its own process; the time-vs-size exponent by least squares in log-log."""
-    rows = []
+    rows: list[dict[str, Any]] = []
     for n in sizes:
         print(f"  sweep: {n} fine vertices ({method})...", file=sys.stderr, flush=True)
         cmd = [sys.executable, "-m", "couture.bench.drape", "--sweep-one", str(n), "--solvers", method,
@@ -426,7 +428,7 @@ def main(argv: list[str] | None = None) -> int:
         warm = warm_up(a.solvers)
         print("warm-up: " + ", ".join(f"{m} {s:.1f} s" for m, s in warm.items()), file=sys.stderr, flush=True)
 
-    cases = []
+    cases: list[dict[str, Any]] = []
     variants = [True, False] if a.frictionless else [True]
     total = len(a.designs) * len(a.solvers) * len(variants)
     for name_or_path in a.designs:
@@ -472,10 +474,9 @@ def main(argv: list[str] | None = None) -> int:
         "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
                     "load_average_at_end": list(os.getloadavg())},
         "commit": _commit(),
-        "args": vars(a), "cases": cases, "sweep": sw,
+        "args": dict(vars(a), out=str(a.out)), "cases": cases, "sweep": sw,
     }
-    (out_dir / "drape.json").write_text(json.dumps(report, indent=1))
-    print(f"wrote {out_dir / 'drape.json'} and plots in {out_dir}")
+    print(f"wrote {write_results(out_dir, 'drape', report)} and plots in {out_dir}")
     return 0
 
 

@@ -28,6 +28,7 @@ import sys
 import threading
 import time
 import uuid
+from typing import Any
 
 import msgspec
 import numpy as np
@@ -133,7 +134,7 @@ def run_pattern_changes(changes: int, solver: str = "kinetic", timeout: float = 
             with lock:  # the first final per generation and level (a later one would be a re-solve)
                 arrivals.setdefault((msg.generation, msg.level), (t, msg))
 
-    rows = []
+    rows: list[dict[str, Any]] = []  # one JSON row per change
     with supervisor.Supervisor(cfg) as sup, Client(bus=sup.child_bus) as client:
         client.wait_nodes(["remesher", f"solver-{solver}", "sensitivity"], timeout=90)
         client.bus.subscribe("drape/*", on_drape, DrapeMsg)

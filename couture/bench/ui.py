@@ -105,7 +105,7 @@ def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, 
                 return d ? c.getParameter(d.UNMASKED_RENDERER_WEBGL) : 'unknown'; }""")
             out["webgl_renderer"] = renderer
             for field in fields:
-                ui.controls.field.value = field
+                ui.controls.field.value = field  # type: ignore[misc]  # viser has the setter; mypy misses it
                 ui.controls.field_chosen()
                 page.wait_for_timeout(500)
                 # -- stream

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg as sla
@@ -42,14 +43,20 @@ from couture.cloth.model import ClothModel
 
 from .bending import length_scale, model_bending, model_lame
 
-try:  # the solvers' direct backends (CHOLMOD/PARDISO when installed, SuperLU always)
-    from couture.solvers.linalg import FactorizationError, available_backends as _available_backends
+if TYPE_CHECKING:  # the type checker sees the solvers' names; at run time they may be missing
+    from couture.solvers.linalg import FactorizationError
+    from couture.solvers.linalg import available_backends as _available_backends
     from couture.solvers.linalg import factorize as _solvers_factorize
-except Exception:  # pragma: no cover - solvers package not importable
-    class FactorizationError(RuntimeError):
-        pass
+else:
+    try:  # the solvers' direct backends (CHOLMOD/PARDISO when installed, SuperLU always)
+        from couture.solvers.linalg import FactorizationError
+        from couture.solvers.linalg import available_backends as _available_backends
+        from couture.solvers.linalg import factorize as _solvers_factorize
+    except Exception:  # pragma: no cover - solvers package not importable
+        class FactorizationError(RuntimeError):
+            pass
 
-    _solvers_factorize = None
+        _solvers_factorize = None
 
 
 class _SpluFactor:
@@ -171,15 +178,17 @@ def rigid_modes(x: np.ndarray) -> np.ndarray:
 
 def contact_curvature(model: ClothModel, x: np.ndarray, h: float = 1e-6) -> sp.csr_matrix | None:
     """The body-curvature part of the contact Hessian, ``-k_c pen Hess(phi)``
-    (3n, 3n), that couture.cloth's Gauss-Newton contact stiffness drops.
+    (3n, 3n), for a body without ``phi_hess``: couture.cloth's exact Hessian
+    (``stiffness(project=False)``) includes it for bodies that give their SDF
+    Hessian, and leaves it out for the others.
 
     Without it a rigid spin of a garment on a frictionless body of revolution
     is not in the kernel of K, and sensitivities on curved bodies are off by
     O(contact pressure / radius). Hess(phi) by central differences of the
-    body's gradient (exact for analytic bodies up to O(h²); for grid SDFs the
-    Hessian of the interpolant). None when the model has no contact term.
+    body's gradient (exact for analytic bodies up to O(h²)). None when the
+    model has no contact term or its body has ``phi_hess``.
     """
-    if "contact" not in model.terms or model.body is None:
+    if "contact" not in model.terms or model.body is None or hasattr(model.body, "phi_hess"):
         return None
     phi, _ = model.body.phi_grad(x)
     pen = model.contact_offset - np.asarray(phi)
@@ -346,7 +355,7 @@ class SensitivityFactor:
         lam = np.inf
         for _ in range(iters):
             w = fac.solve(v)
-            nw = np.linalg.norm(w)
+            nw = float(np.linalg.norm(w))
             if not np.isfinite(nw) or nw == 0:
                 return 0.0
             lam = 1.0 / nw

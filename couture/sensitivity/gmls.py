@@ -171,7 +171,7 @@ class GMLSCache:
         for i, s in enumerate(self.samples):
             if i in protect:
                 continue
-            sc = np.linalg.norm(s.d - self._d_now) / self.d_scale + (now - s.t) / self.age_scale
+            sc = float(np.linalg.norm(s.d - self._d_now)) / self.d_scale + (now - s.t) / self.age_scale
             if sc > score:
                 best, score = i, sc
         if best is None:
@@ -252,7 +252,7 @@ class GMLSCache:
         self._d_now = d
         ss, c0, c1 = self.coefficients(d, method)
         rows, coef = [], []
-        for s, a, b in zip(ss, c0, c1):
+        for s, a, b in zip(ss, c0, c1, strict=True):
             rows.append(s.row_x)
             coef.append(a)
             if s.rows_s is not None and method == "gmls":

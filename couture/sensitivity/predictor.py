@@ -79,22 +79,22 @@ class Predictor:
         self.model_at = model_at
         self.factor_kwargs = factor_kwargs or {}
         self._lock = threading.RLock()
-        self.model = None
-        self.x_eq = None
+        self.model: ClothModel | None = None
+        self.x_eq: np.ndarray | None = None
         self.d_eq = np.zeros(2)
         self.factor: SensitivityFactor | None = None
-        self._factor_for = None
+        self._factor_for: np.ndarray | None = None
         self.cache: GMLSCache | None = None
-        self.psi = None
+        self.psi: np.ndarray | None = None
         self.d0 = np.zeros(2)
-        self.S0 = None
+        self.S0: np.ndarray | None = None
         self.last: Prediction | None = None
         self._edit_lock = threading.RLock()
-        self._edit_model = None
-        self._edit_d = None
+        self._edit_model: ClothModel | None = None
+        self._edit_d: np.ndarray | None = None
 
     # -- equilibrium and factorization -------------------------------------
-    def set_equilibrium(self, model, x_eq: np.ndarray, d=None) -> None:
+    def set_equilibrium(self, model: ClothModel, x_eq: np.ndarray, d=None) -> None:
         """A new equilibrium (new mesh or a converged solve): remember it; the
         factorization is stale until ``refactor`` runs."""
         with self._lock:
@@ -109,10 +109,23 @@ class Predictor:
     def stale(self) -> bool:
         return self.factor is None or self._factor_for is not self.x_eq
 
+    def _equilibrium(self) -> tuple[ClothModel, np.ndarray, GMLSCache]:
+        """The latest (model, x_eq, cache); an error before ``set_equilibrium``.
+        Callers that need them consistent hold ``_lock``."""
+        if self.model is None or self.x_eq is None or self.cache is None:
+            raise RuntimeError("Predictor: no equilibrium yet (set_equilibrium first)")
+        return self.model, self.x_eq, self.cache
+
+    def _pressed(self) -> np.ndarray:
+        """The pointer Jacobian Ψ of the active edit; an error before ``press``."""
+        if self.psi is None:
+            raise RuntimeError("Predictor: no edit pressed yet (press first)")
+        return self.psi
+
     def refactor(self) -> FactorInfo:
         """Factor the stiffness at the latest equilibrium (idle time; worker thread)."""
         with self._lock:
-            model, x = self.model, self.x_eq
+            model, x, _ = self._equilibrium()
         f = SensitivityFactor(model, x, bend_floor=self.bend_floor, **self.factor_kwargs)
         with self._lock:
             if self.x_eq is x:
@@ -128,22 +141,25 @@ class Predictor:
         if self.stale:
             self.refactor()
         with self._lock:
+            model = self._equilibrium()[0]
             f = self.factor
-            self.psi = np.asarray(psi, dtype=np.float64)
+            assert f is not None, "no factorization: the equilibrium changed while it was factored"
+            self.psi = psi = np.asarray(psi, dtype=np.float64)
             self.d0 = self.d_eq.copy() if d0 is None else np.asarray(d0, dtype=np.float64).reshape(2)
-            self.X0 = np.array(self.model.X, dtype=np.float64)
-        S = f.columns(self.psi)
+            self.X0 = np.array(model.X, dtype=np.float64)
+        S = f.columns(psi)
         with self._lock:
             self.S0 = S
-            self.cache.clear()
-            self.cache.add(self.d0, f.x_eq, S, anchor=True)
+            cache = self._equilibrium()[2]
+            cache.clear()
+            cache.add(self.d0, f.x_eq, S, anchor=True)
             self._edit_model = None
         return S
 
     def rest_at(self, d) -> np.ndarray:
         """Rest positions X(d) = X_0 + Ψ (d - d0), shape (n, 2)."""
         dd = np.asarray(d, dtype=np.float64).reshape(2) - self.d0
-        return self.X0 + self.psi @ dd
+        return self.X0 + self._pressed() @ dd
 
     def model_for(self, d):
         """The cloth model at the edited rest shape X(d): one private copy per
@@ -152,7 +168,7 @@ class Predictor:
         d = np.asarray(d, dtype=np.float64).reshape(2)
         with self._edit_lock:
             if self._edit_model is None:
-                self._edit_model = self.model_at(self.model, self.rest_at(d))
+                self._edit_model = self.model_at(self._equilibrium()[0], self.rest_at(d))
                 self._edit_d = d.copy()
             elif not np.array_equal(d, self._edit_d):
                 self._edit_model.set_rest_positions(self.rest_at(d))
@@ -176,7 +192,7 @@ class Predictor:
         with self._lock:
             cache = self.cache
             if cache is None or not len(cache):
-                x, used = self.x_eq.copy(), "none"
+                x, used = self._equilibrium()[1].copy(), "none"
             elif method == "linear":
                 x, used = cache.predict_linear(d), "linear"
             else:
@@ -199,12 +215,12 @@ class Predictor:
         x_m = np.asarray(x_m, dtype=np.float64)
         info, S = None, None
         if sensitivity:
-            model_m = self.model_at(self.model, self.rest_at(d_m))
+            model_m = self.model_at(self._equilibrium()[0], self.rest_at(d_m))
             f = SensitivityFactor(model_m, x_m, bend_floor=self.bend_floor, **self.factor_kwargs)
-            S = f.columns(self.psi)
+            S = f.columns(self._pressed())
             info = f.info
         with self._lock:
-            self.cache.add(d_m, x_m, S)
+            self._equilibrium()[2].add(d_m, x_m, S)
         return info
 
     def release(self, d) -> np.ndarray:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Callable
 
-from .base import ProgressCallback, SolveResult, Solver
+from .base import ProgressCallback, Solver, SolveResult
 from .kinetic import KineticSolver
 from .newton import NewtonSolver
 from .verlet import VerletSolver

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import os
 import time
+from typing import overload
 
 # MKL's conditional numerical reproducibility: PARDISO's threaded factorization
 # otherwise differs in the last bits from run to run (measured: 1 of 8 solves),
@@ -312,7 +313,14 @@ class _PardisoFactor(Factor):
         self._n = 0
         self.refactor(A)
 
+    @overload
+    def _call(self, phase: int, data: np.ndarray) -> None: ...
+
+    @overload
+    def _call(self, phase: int, data: np.ndarray, b: np.ndarray) -> np.ndarray: ...
+
     def _call(self, phase: int, data: np.ndarray, b: np.ndarray | None = None) -> np.ndarray | None:
+        """One PARDISO phase; with a right-hand side b, the solution."""
         ct = self._ct
         i32 = ct.POINTER(ct.c_int32)
         f64 = ct.POINTER(ct.c_double)

@@ -81,10 +81,14 @@ class IncomingMesh:
     """fine level: (coarse parent triangle (n,) int32, barycentric coordinates (n, 3))"""
 
 
+DEFAULT_TOL: dict[str, float] = {"coarse": 1e-3, "fine": 1e-4}
+"""level -> residual tolerance a solver node stops at unless told otherwise"""
+
+
 @dataclass
 class SolveService:
     method: str = "kinetic"
-    tol: dict[str, float] = field(default_factory=lambda: {"coarse": 1e-3, "fine": 1e-4})
+    tol: dict[str, float] = field(default_factory=lambda: dict(DEFAULT_TOL))
     max_seconds: dict[str, float] = field(default_factory=lambda: {"coarse": 30.0, "fine": 120.0})
     design: Design | None = None
     levels: dict[str, LevelModel] = field(default_factory=dict)
@@ -188,7 +192,7 @@ class SolveService:
             x0, how = self._warm(level, coarse_x)
             last = [time.monotonic()]
 
-            def cb(it: int, x: np.ndarray, res: float, level=level) -> bool:
+            def cb(it: int, x: np.ndarray, res: float, level: str = level, last: list[float] = last) -> bool:
                 if should_abort():
                     return True
                 now = time.monotonic()

@@ -26,6 +26,7 @@ comparable across solvers; ``stats['own_residual']`` is the spring model's.
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 
@@ -113,7 +114,8 @@ class VerletSolver:
         self.stretch_iters = stretch_iters
         self.seam_iters = seam_iters
         self.check_every = check_every
-        self._cache = None
+        self._cache: tuple[Any, SpringModel] | None = None
+        """(the model, its springs) of the last solve"""
 
     def spring_model(self, model) -> SpringModel:
         if self._cache is None or self._cache[0] is not model:

@@ -172,6 +172,8 @@ class CoutureUI:
 
     @property
     def page_url(self) -> str:
+        if self.page is None:
+            raise RuntimeError("CoutureUI.page_url: the UI is not started")
         return self.page.url
 
     @property
@@ -185,10 +187,14 @@ class CoutureUI:
 
     @property
     def url3d(self) -> str:
+        if self.server3d is None:
+            raise RuntimeError("CoutureUI.url3d: the UI is not started")
         return f"http://{self.config.host}:{self.server3d.get_port()}/"
 
     @property
     def url2d(self) -> str:
+        if self.server2d is None:
+            raise RuntimeError("CoutureUI.url2d: the UI is not started")
         return f"http://{self.config.host}:{self.server2d.get_port()}/"
 
     # ------------------------------------------------------------------ data in (thread-safe, non-blocking)

@@ -6,6 +6,7 @@ from elsewhere without handing anything back."""
 
 from __future__ import annotations
 
+import functools
 from typing import Any, Callable
 
 import msgspec
@@ -56,8 +57,8 @@ class Controls:
                                          min(r.coarse_vertices, 5000))
             self.fine = gui.add_slider("fine vertices", min(300, r.fine_vertices), 40000, 100,
                                        min(r.fine_vertices, 40000))
-            for h in (self.coarse, self.fine):
-                on_user_change(h, self.resolution_changed)
+            for slider in (self.coarse, self.fine):
+                on_user_change(slider, self.resolution_changed)
             self.field = gui.add_dropdown("colour map", colormaps.FIELDS, initial_value="none")
             on_user_change(self.field, self.field_chosen)
             self.legend = gui.add_html("")
@@ -68,16 +69,16 @@ class Controls:
     def show_design(self, d: Design) -> None:
         """Mirror a design (assignments run no user callbacks: see on_user_change)."""
         if self.sloper.value != d.sloper.kind and d.sloper.kind in self.sloper.options:
-            self.sloper.value = d.sloper.kind
+            self.sloper.value = d.sloper.kind  # type: ignore[misc]  # viser has the setter; mypy misses it
             self._build_option_sliders(d)
         for name, h in self.params.items():
             if name in d.sloper.params:
                 h.value = float(d.sloper.params[name])
         f = d.fabric
-        self.preset.value = f.name if f.name in FABRIC_PRESETS else "custom"
-        self.bend.value, self.stretch.value, self.density.value = f.bend_stiffness, f.stretch_stiffness, f.area_density
-        for h, v in ((self.coarse, d.resolution.coarse_vertices), (self.fine, d.resolution.fine_vertices)):
-            h.value = min(max(v, h.min), h.max)
+        self.preset.value = f.name if f.name in FABRIC_PRESETS else "custom"  # type: ignore[misc]  # viser has the setter; mypy misses it
+        self.bend.value, self.stretch.value, self.density.value = f.bend_stiffness, f.stretch_stiffness, f.area_density  # type: ignore[misc]  # viser has the setter; mypy misses it
+        for slider, v in ((self.coarse, d.resolution.coarse_vertices), (self.fine, d.resolution.fine_vertices)):
+            slider.value = int(min(max(v, slider.min), slider.max))  # type: ignore[misc]  # viser has the setter; mypy misses it
 
     def show_solvers(self, live: list[str], selected: str) -> None:
         """The solver choices: 'any' and the live solvers; a chosen solver
@@ -87,7 +88,7 @@ class Controls:
             opts = (*opts, selected)
         if tuple(self.solver.options) != opts:
             self.solver.options = opts
-            self.solver.value = selected
+            self.solver.value = selected  # type: ignore[misc]  # viser has the setter; mypy misses it
 
     def show_legend(self, scale: colormaps.ColorScale | None) -> None:
         self.legend.content = scale.legend_html() if scale is not None else ""
@@ -109,12 +110,12 @@ class Controls:
                 step = 1.0 if o.integer else nice_step(o.max - o.min)
                 label = f"{o.name} [{o.unit}]" if o.unit else o.name
                 h = self.gui.add_slider(label, o.min, o.max, step, min(max(val, o.min), o.max))
-                on_user_change(h, lambda name=o.name: self.param_changed(name))
+                on_user_change(h, functools.partial(self.param_changed, o.name))
                 self.params[o.name] = h
         names = tuple(o.name for o in opts) or ("(none)",)
         self.tug_param.options = names
         # a style option by default (the body measurements come first in the tables)
-        self.tug_param.value = "length" if "length" in names else names[0]
+        self.tug_param.value = "length" if "length" in names else names[0]  # type: ignore[misc]  # viser has the setter; mypy misses it
 
     # -- what the designer did -> a new design
 
@@ -134,12 +135,12 @@ class Controls:
         p = FABRIC_PRESETS.get(str(self.preset.value))
         if p is None:
             return
-        self.bend.value, self.stretch.value, self.density.value = p.bend_stiffness, p.stretch_stiffness, p.area_density
+        self.bend.value, self.stretch.value, self.density.value = p.bend_stiffness, p.stretch_stiffness, p.area_density  # type: ignore[misc]  # viser has the setter; mypy misses it
         self._set_fabric(msgspec.structs.replace(self.design().fabric, name=p.name, bend_stiffness=p.bend_stiffness,
                                                  stretch_stiffness=p.stretch_stiffness, area_density=p.area_density))
 
     def fabric_changed(self) -> None:
-        self.preset.value = "custom"
+        self.preset.value = "custom"  # type: ignore[misc]  # viser has the setter; mypy misses it
         self._set_fabric(msgspec.structs.replace(
             self.design().fabric, name="custom", bend_stiffness=float(self.bend.value),
             stretch_stiffness=float(self.stretch.value), area_density=float(self.density.value)))

@@ -42,6 +42,7 @@ def load_body(path: Path = MANNEQUIN_OBJ) -> tuple[np.ndarray, np.ndarray]:
     import trimesh
 
     m = trimesh.load(path, process=False, force="mesh")
+    assert isinstance(m, trimesh.Trimesh), f"{path}: not a single mesh"
     return np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64)
 
 
@@ -193,7 +194,8 @@ class DrapeView:
                     continue
                 t = mesh.tris[tri_idx]
                 uniq, inv = np.unique(t, return_inverse=True)
-                h.color = tuple(int(c) for c in colors[b])
+                red, green, blue = (int(c) for c in colors[b])
+                h.color = (red, green, blue)
                 h.vertices = xf[uniq]
                 prev = self._band_tris[b]
                 if prev is None or prev.shape != tri_idx.shape or not np.array_equal(prev, tri_idx):

@@ -86,7 +86,7 @@ class SessionPanel:
         """What the record toggle did (file path, or why not); ``on`` moves the toggle."""
         self.record_note.content = text
         if on is not None:
-            self.record.value = on
+            self.record.value = on  # type: ignore[misc]  # viser has the setter; mypy misses it
 
     def export_pattern(self, fmt: str, client: viser.ClientHandle | None = None) -> Path | None:
         pattern = self.pattern()

@@ -175,8 +175,8 @@ def plan_handles(design, pattern, *, min_gap: float = 0.03, near: float = 0.8) -
                                           if k < len(pn.holes) and hj.shape[0] == len(pn.holes[k])]
             for hole, jac in polys:
                 mag = np.linalg.norm(jac.reshape(len(jac), -1), axis=1)
-                for v in np.flatnonzero(mag > 1e-9):
-                    best.append((float(mag[v]), pi, name, int(v), hole))
+                for vi in np.flatnonzero(mag > 1e-9):
+                    best.append((float(mag[vi]), pi, name, int(vi), hole))
         if not best:
             continue
         top = max(b[0] for b in best)
@@ -188,7 +188,7 @@ def plan_handles(design, pattern, *, min_gap: float = 0.03, near: float = 0.8) -
 
         def free(b) -> float:
             p = at(b)
-            ds = [np.linalg.norm(p - q) for n, q in taken if n == b[2]]
+            ds = [float(np.linalg.norm(p - q)) for n, q in taken if n == b[2]]
             return min(ds) if ds else np.inf
 
         ok = [b for b in cands if free(b) >= min_gap] or cands

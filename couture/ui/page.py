@@ -58,7 +58,8 @@ class PageServer:
 
         self.httpd = http.server.ThreadingHTTPServer((host, port), Handler)
         self.httpd.daemon_threads = True
-        self.host, self.port = self.httpd.server_address[:2]
+        # an AF_INET server's address is (str, int); typeshed allows bytes for the host
+        self.host, self.port = str(self.httpd.server_address[0]), self.httpd.server_address[1]
         self._thread = threading.Thread(target=self.httpd.serve_forever, name="couture-page", daemon=True)
         self._thread.start()
 

@@ -117,7 +117,7 @@ class PatternView:
         """cb(point in panel coordinates [m], panel name or None)"""
         self._lock = threading.RLock()
         self._drag: dict | None = None
-        self._handle_node = None
+        self._handle_node: viser.BatchedMeshHandle | None = None
         self._labels: list = []
         self._nodes: dict[str, object] = {}
         self._framed: tuple[np.ndarray, np.ndarray] | None = None
@@ -205,6 +205,7 @@ class PatternView:
 
     def _draw_all(self) -> None:
         pat = self.pattern
+        assert pat is not None, "_draw_all without a pattern"
         sc = self.server.scene
         with self.server.atomic():
             for name in list(self._nodes):
@@ -251,11 +252,13 @@ class PatternView:
         """Seams between panel edges, each pair in its own colour (a dart's
         two legs are its seam: drawn as the dart)."""
         pat = self.pattern
+        assert pat is not None, "_draw_seams without a pattern"
         k = 0
         for s in pat.seams:
             if is_dart_leg(s.a_segment) and is_dart_leg(s.b_segment):
                 continue
-            col = tuple(int(c) for c in SEAM_PALETTE[k % len(SEAM_PALETTE)])
+            red, green, blue = (int(c) for c in SEAM_PALETTE[k % len(SEAM_PALETTE)])
+            col = (red, green, blue)
             for side, (pn, sn) in enumerate(((s.a_panel, s.a_segment), (s.b_panel, s.b_segment))):
                 try:
                     P = self.display(pn, segment_points(pat.panel(pn), sn))
@@ -271,6 +274,7 @@ class PatternView:
         """Display positions of the handles, shape (h, 3) (z slightly above the panels)."""
         pos = []
         for h in self.handles:
+            assert self.pattern is not None, "handles without a pattern"
             p = self.pattern.panel(h.panel)
             pos.append(np.append(self.display(h.panel, h.rest_position(p)), 0.003))
         return np.array(pos).reshape(-1, 3)
@@ -355,6 +359,7 @@ class PatternView:
 
     def mesh_vertex_panel(self) -> np.ndarray:
         m = self.mesh
+        assert m is not None, "no mesh yet"
         vp = np.zeros(m.n_vertices, np.int32)
         vp[m.tris.ravel()] = np.repeat(m.tri_panel, 3)
         return vp
@@ -362,6 +367,7 @@ class PatternView:
     def mesh_display_X(self) -> np.ndarray:
         """Mesh rest positions with each panel's display offset added, shape (n, 2)."""
         m = self.mesh
+        assert m is not None, "no mesh yet"
         X = m.X.copy()
         if self.offsets and m.panel_names:
             vp = self.mesh_vertex_panel()
@@ -398,6 +404,8 @@ class PatternView:
 
     def nearest_segment(self, p_display: np.ndarray) -> tuple[str, str, float] | None:
         """(panel, segment, t along it in [0, 1]) of the boundary piece nearest a point."""
+        if self.pattern is None:
+            return None
         best = None
         for p in self.pattern.panels:
             for s in p.segments:

@@ -49,7 +49,11 @@ class PatternTools:
             self.help = gui.add_markdown(IDLE_HELP)
             for label, tool in (("Add a curve point", "curve"), ("Draw a dart", "dart"),
                                 ("Sew two segments", "seam"), ("Mark symmetry", "symmetry"), ("Cancel tool", None)):
-                gui.add_button(label).on_click(lambda _, tool=tool: self.arm(tool))
+
+                def arm(_: viser.GuiEvent, tool: str | None = tool) -> None:
+                    self.arm(tool)
+
+                gui.add_button(label).on_click(arm)
             self.show_mesh = gui.add_checkbox("show mesh", False)
             on_user_change(self.show_mesh, lambda: view2d.set_show_mesh(bool(self.show_mesh.value)))
             self.show_names = gui.add_checkbox("show all handle names", False)

@@ -77,7 +77,7 @@ class ClientFraming:
             # the designer moved the camera only if it is at none of those places
             ours = [*last[1], np.asarray(self.server.initial_camera.position, np.float64)]
             p = np.asarray(cam.position, np.float64)
-            if all(np.linalg.norm(p - q) > 1e-3 * max(np.linalg.norm(q), 1.0) for q in ours):
+            if all(np.linalg.norm(p - q) > 1e-3 * max(float(np.linalg.norm(q)), 1.0) for q in ours):
                 return
         self.apply(client)
 

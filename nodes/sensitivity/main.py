@@ -21,7 +21,12 @@ from couture.designs import Matched
 from couture.mesh import GarmentMesh
 from couture.pattern.errors import PatternError
 from couture.sensitivity.service import (
-    Gesture, NoEquilibrium, Press, PredictionOut, SensitivityConfig, SensitivityService,
+    Gesture,
+    NoEquilibrium,
+    PredictionOut,
+    Press,
+    SensitivityConfig,
+    SensitivityService,
 )
 from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg
 from schemas.convert import msg_to_mesh

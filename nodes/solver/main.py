@@ -22,8 +22,8 @@ import numpy as np
 from couture.bus import BusConfig, Node
 from couture.bus.worker import LatestWorker
 from couture.cloth.model import ClothModel
-from couture.solvers import get_solver
 from couture.designs import Matched
+from couture.solvers import get_solver
 from couture.solvers.service import IncomingMesh, LevelRun, SolveService, scene_from_design
 from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, SolveRequestMsg, SolveResultMsg
 from schemas.convert import msg_to_mesh
