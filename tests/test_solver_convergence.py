@@ -20,6 +20,7 @@ from pathlib import Path
 import msgspec
 import numpy as np
 import pytest
+from solver_testmodel import cloth_hanging_sheet, fabric
 
 from couture.cloth import ClothModel, Scene
 from couture.cloth.body import PlaneBody
@@ -30,8 +31,6 @@ from couture.solvers import get_solver
 from couture.solvers.common import verdict
 from couture.solvers.service import SolveService
 from schemas.design import Resolution
-
-from solver_testmodel import cloth_hanging_sheet, fabric
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "couture" / "pattern" / "examples"
 DESIGNS = ["default_skirt", "dress", "shirt", "trousers"]

@@ -252,6 +252,10 @@ class FrictionSchedule:
             return n > 0
         return False
 
+    def holds(self) -> bool:
+        """No vertex is slipping (a balance with slipping vertices is a moment of a slide)."""
+        return not (self.present and self.model.slipping.any())
+
     def at_balance(self, x: np.ndarray) -> bool:
         """At a state balanced for the current anchors; True when the forces changed."""
         if not (self.present and self.on):

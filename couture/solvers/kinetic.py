@@ -286,12 +286,14 @@ class KineticSolver:
                 history[-1] = (now, r)
             stats["friction_s"] += time.perf_counter() - tf
             best.offer(x, r, it)
-            if r <= tol and fric.at_balance(x):
+            rounds = 0
+            while r <= tol and rounds < 3 and fric.at_balance(x):
+                rounds += 1  # as in Newton: until a balance holds as it is
                 watch.restart(it)
                 E, f = energy_and_forces(model, x)
                 r = res_scale(x, f)
                 history[-1] = (now, r)
-            if r <= tol:
+            if r <= tol and fric.holds():
                 converged = True
                 stats["assembly_s"] += time.perf_counter() - ta
                 break

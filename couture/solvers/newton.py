@@ -170,13 +170,17 @@ class NewtonSolver:
                 diag = f"diverged: non-finite forces or energy at iteration {it}"
                 break
             best.offer(x, r, it)
-            if r <= tol and fric.at_balance(x):
+            rounds = 0
+            while r <= tol and rounds < 3 and fric.at_balance(x):
+                # until a balance holds as it is (a slip that barely changed the forces is
+                # followed at once by sticking where the vertex is)
+                rounds += 1
                 watch.restart(it)
                 f = model.forces(x)
                 E = model.energy(x)
                 r = res_scale(x, f)
                 history.append((now, r))
-            if r <= tol:
+            if r <= tol and fric.holds():
                 converged = True
                 break
             if callback is not None and callback(it, x, r):
