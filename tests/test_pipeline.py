@@ -79,8 +79,16 @@ def test_pattern_to_drape_bad_pattern_and_solver_restart():
 
 def test_two_solver_nodes_at_once_agree():
     """Two solver nodes under one ``couture up`` (kinetic and Newton) answer the same
-    pattern, each under its own name, and their fine drapes agree (frictionless:
-    with friction each may stop in a different Coulomb equilibrium)."""
+    pattern, each under its own name, and each fine drape is an equilibrium of the
+    same cloth model (the mesh that crossed the bus, the design's fabric), checked here.
+    Positions are not compared: this frictionless skirt has more than one equilibrium
+    (measured: the two drapes, each polished by Newton to 7e-10, stay 8.8 mm rms apart,
+    their energies 0.9 % apart), and which one a method reaches is its path."""
+    from couture.cloth.model import ClothModel
+    from couture.solvers import get_solver
+    from couture.solvers.service import scene_from_design
+    from schemas.convert import msg_to_mesh
+
     session = f"p{uuid.uuid4().hex[:8]}"
     nodes = [n for n in supervisor.default_nodes(solvers=["kinetic", "newton"], ui=False)
              if n.name != "sensitivity"]
@@ -100,13 +108,17 @@ def test_two_solver_nodes_at_once_agree():
         assert set(got) == {"solver-kinetic", "solver-newton"}, f"fine drapes from {sorted(got)} only"
         k, n = got["solver-kinetic"], got["solver-newton"]
         assert k.method == "kinetic" and n.method == "newton"
+        mesh_msg = client.latest_mesh("fine")
+        assert mesh_msg is not None and mesh_msg.generation == gen
+        model = ClothModel(msg_to_mesh(mesh_msg), design.fabric, scene_from_design(design))
         for d in (k, n):
             assert d.converged and d.residual <= 1e-4, (d.solver, d.residual, d.diagnosis)
-        xk, xn = k.x.numpy(), n.x.numpy()
-        assert xk.shape == xn.shape
-        dist = np.linalg.norm(xk - xn, axis=1)
-        print(f"kinetic vs newton: rms {np.sqrt(np.mean(dist ** 2)):.2e} m, max {dist.max():.2e} m, "
-              f"wall {k.wall_time_s:.2f} s vs {n.wall_time_s:.2f} s")
-        # two methods, one equilibrium: measured 3 um rms, 17 um max here
-        assert float(np.sqrt(np.mean(dist ** 2))) < 5e-4 and float(dist.max()) < 5e-3, (
-            f"rms {np.sqrt(np.mean(dist ** 2)):.2e} m, max {dist.max():.2e} m")
+            x = d.x.numpy().astype(np.float64)
+            assert x.shape == (model.n, 3)
+            # drapes travel as float32 (60 nm steps, far more than 1e-4 of the stiff seams'
+            # force), so the check is a re-solve of this model from the wire drape: it is an
+            # equilibrium if Newton, started there, finds one within a tenth of a millimetre
+            again = get_solver("newton").solve(model, x, tol=1e-6, max_iters=50)
+            assert again.converged, (d.solver, again.diagnosis)
+            moved = float(np.linalg.norm(again.x - x, axis=1).max())
+            assert moved < 1e-4, (d.solver, moved)
