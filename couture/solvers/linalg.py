@@ -208,7 +208,7 @@ class Factor:
         refinement, as for a preconditioner; exact backends ignore it)."""
         raise NotImplementedError
 
-    def refactor(self, A: sp.csr_matrix) -> None:  # pragma: no cover - interface
+    def refactor(self, A: sp.csr_matrix, *, expect_indefinite: bool = False) -> None:  # pragma: no cover - interface
         raise NotImplementedError
 
 
@@ -218,7 +218,7 @@ class _SpluFactor(Factor):
     def __init__(self, A):
         self.refactor(A)
 
-    def refactor(self, A):
+    def refactor(self, A, *, expect_indefinite: bool = False):
         try:
             self._lu = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                                  options={"SymmetricMode": True})
@@ -251,7 +251,7 @@ class _CholmodFactor(Factor):
             self._f = analyze(A, mode="supernodal", ordering_method="amd")
         self._pattern = (A.indptr.copy(), A.indices.copy())
 
-    def refactor(self, A):
+    def refactor(self, A, *, expect_indefinite: bool = False):
         from sksparse.cholmod import CholmodNotPositiveDefiniteError
 
         A = sp.csc_matrix(A)
@@ -339,7 +339,12 @@ class _PardisoFactor(Factor):
                                      f"({self._ERRORS.get(err.value, 'unknown')})")
         return None if b is None else np.ascontiguousarray(x)
 
-    def refactor(self, A):
+    def refactor(self, A, *, expect_indefinite: bool = False):
+        """Numeric factorization of A (symbolic analysis only for a new pattern). A
+        negative pivot in single precision is retried in double, for good on this
+        object, unless ``expect_indefinite`` (the caller tries a matrix that may well be
+        indefinite, e.g. a shifted true Hessian): then it raises at once and the
+        object stays usable for the next matrix."""
         A = sp.csr_matrix(A)
         if self._pattern is None or self._pattern[0].shape != A.indptr.shape or not (
                 np.array_equal(self._pattern[0], A.indptr) and np.array_equal(self._pattern[1], A.indices)):
@@ -364,7 +369,7 @@ class _PardisoFactor(Factor):
         try:
             self._call(22, self._data)
         except FactorizationError:
-            if not self._iparm[27]:
+            if not self._iparm[27] or expect_indefinite:
                 raise
             # a negative pivot in single precision can be round-off on an SPD but
             # ill-conditioned matrix: decide in double

@@ -69,7 +69,7 @@ class NewtonSolver:
         true_until: float = 1.0,
         crawl_window: int = 10,
         shift_floor: float = 1e-4,
-        friction_after: float = 1e-2,
+        friction_after: float = 0.01,
         friction_every: int = 5,
         forcing: float = 0.1,
         forcing_max: float = 1e-2,
@@ -226,13 +226,13 @@ class NewtonSolver:
                     if factor is None or factor.backend != self.backend:
                         factor = factorize(A, self.backend)
                     else:
-                        factor.refactor(A)
+                        # a failed try keeps the factor object (and its symbolic analysis)
+                        factor.refactor(A, expect_indefinite=use_true)
                     stats["factorizations"] += 1
                     p = factor.solve(g, rtol=min(self.forcing_max, self.forcing * r))
                     if not finite(p) or float(g @ p) <= 0.0:
                         p = None
                 except FactorizationError:
-                    factor = None
                     stats["factorization_failures"] += 1
                 stats["linear_solve_s"] += time.perf_counter() - tl
                 if p is None and use_true and h_true > self.shift_floor:
