@@ -31,8 +31,13 @@ def _parser() -> argparse.ArgumentParser:
     up = sub.add_parser("up", help="start every node (own processes, restarted on crash)")
     up.add_argument("--record", metavar="FILE", help="also record the session to this MCAP file")
     up.add_argument("--no-ui", action="store_true", help="do not start the web UI node")
-    up.add_argument("--solver", nargs="+", default=["kinetic"], choices=["kinetic", "newton", "verlet"],
-                    help="solver nodes to run (several for side-by-side comparison)")
+    up.add_argument(
+        "--solver",
+        nargs="+",
+        default=["kinetic"],
+        choices=["kinetic", "newton", "verlet"],
+        help="solver nodes to run (several for side-by-side comparison)",
+    )
     up.add_argument("--ui-host", default="127.0.0.1")
     up.add_argument("--ui-port", type=int, default=8080)
     add_bus_args(up)
@@ -43,12 +48,17 @@ def _parser() -> argparse.ArgumentParser:
     rp = sub.add_parser("replay", help=f"publish recorded inputs ({inputs}) onto the bus")
     rp.add_argument("path")
     rp.add_argument("--topics", nargs="+", default=None, help=f"relative topics to replay (default: {inputs})")
-    rp.add_argument("--rate", type=float, default=1.0, help="1: original timing, R: R times faster, 0: as fast as possible")
+    rp.add_argument(
+        "--rate", type=float, default=1.0, help="1: original timing, R: R times faster, 0: as fast as possible"
+    )
     rp.add_argument("--loop", action="store_true")
     rp.add_argument("--wait-nodes", nargs="*", default=[], help="node names that must be live before sending")
     rp.add_argument("--wait-timeout", type=float, default=10.0, help="[s]")
-    rp.add_argument("--lockstep", action="store_true",
-                    help="after each pattern, wait for its final drape/fine before sending on (deterministic regression runs)")
+    rp.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="after each pattern, wait for its final drape/fine before sending on (deterministic regression runs)",
+    )
     rp.add_argument("--lockstep-timeout", type=float, default=300.0, help="[s] per pattern in --lockstep mode")
     add_bus_args(rp)
 
@@ -64,35 +74,58 @@ def _parser() -> argparse.ArgumentParser:
     rc.add_argument("src")
     rc.add_argument("dst")
 
-    fx = sub.add_parser("export-foxglove", help="copy a recording and add Foxglove-viewable channels (drape, body, pattern, log)")
+    fx = sub.add_parser(
+        "export-foxglove", help="copy a recording and add Foxglove-viewable channels (drape, body, pattern, log)"
+    )
     fx.add_argument("src", help="recording (.mcap)")
     fx.add_argument("dst", help="output .mcap: every original message plus /foxglove/* protobuf channels")
-    fx.add_argument("--strain-max", type=float, default=0.10, help="top of the fixed strain colour range (Green strain)")
+    fx.add_argument(
+        "--strain-max", type=float, default=0.10, help="top of the fixed strain colour range (Green strain)"
+    )
     fx.add_argument("--no-body", action="store_true", help="leave out the mannequin")
 
     dp = sub.add_parser(
-        "drape", help="drape a pattern file: start (or join) the nodes, write OBJ + pattern",
+        "drape",
+        help="drape a pattern file: start (or join) the nodes, write OBJ + pattern",
         description="Drape a pattern file once: start the nodes (or join a running session with\n"
-                    "--connect), publish the design, show each level's residual falling, and write\n"
-                    "drape.obj, drape.json and the pattern (JSON, DXF, SVG, PDF) into --out.",
-        epilog=DRAPE_EXIT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+        "--connect), publish the design, show each level's residual falling, and write\n"
+        "drape.obj, drape.json and the pattern (JSON, DXF, SVG, PDF) into --out.",
+        epilog=DRAPE_EXIT_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     dp.add_argument("pattern", help="pattern JSON (couture/design/v1)")
     dp.add_argument("--out", required=True, help="output directory")
-    dp.add_argument("--timeout", type=float, default=240.0,
-                    help="[s] to wait for the final fine drape (default 240: longer than the solver's own caps, "
-                         "so a slow solve ends with its diagnosis, exit 3, rather than a timeout, exit 5)")
+    dp.add_argument(
+        "--timeout",
+        type=float,
+        default=240.0,
+        help="[s] to wait for the final fine drape (default 240: longer than the solver's own caps, "
+        "so a slow solve ends with its diagnosis, exit 3, rather than a timeout, exit 5)",
+    )
     dp.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet"])
-    dp.add_argument("--solver-max-seconds", type=float, default=None, metavar="S",
-                    help="[s] cap on each level's solve in the solver node this command starts "
-                         "(default: the solver's own; ignored with --connect)")
-    dp.add_argument("-v", "--verbose", dest="drape_verbose", action="store_true",
-                    help="also show node lifecycle and library logs (default: progress and the result only)")
+    dp.add_argument(
+        "--solver-max-seconds",
+        type=float,
+        default=None,
+        metavar="S",
+        help="[s] cap on each level's solve in the solver node this command starts "
+        "(default: the solver's own; ignored with --connect)",
+    )
+    dp.add_argument(
+        "-v",
+        "--verbose",
+        dest="drape_verbose",
+        action="store_true",
+        help="also show node lifecycle and library logs (default: progress and the result only)",
+    )
     add_bus_args(dp)
 
     gp = sub.add_parser("golden", help="golden recordings: make or check recordings/<case>.mcap", add_help=False)
     gp.add_argument("rest", nargs=argparse.REMAINDER)
 
-    bp = sub.add_parser("bench", help="benchmarks: NAME writes NAME.json (and its plots) to --out DIR (default bench/results/)")
+    bp = sub.add_parser(
+        "bench", help="benchmarks: NAME writes NAME.json (and its plots) to --out DIR (default bench/results/)"
+    )
     bp.add_argument("which", choices=BENCHES)
     bp.add_argument("args", nargs=argparse.REMAINDER, help="passed to the benchmark, e.g. --out DIR")
     return p
@@ -100,8 +133,9 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
-                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s"
+    )
     try:
         return int(_dispatch(args) or 0)
     except (TimeoutError, ValueError, FileNotFoundError, RuntimeError) as e:
@@ -115,8 +149,9 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.cmd == "up":
         from couture import supervisor
 
-        nodes = supervisor.default_nodes(solvers=args.solver, ui=not args.no_ui, ui_host=args.ui_host,
-                                         ui_port=args.ui_port, record=args.record)
+        nodes = supervisor.default_nodes(
+            solvers=args.solver, ui=not args.no_ui, ui_host=args.ui_host, ui_port=args.ui_port, record=args.record
+        )
         url = "" if args.no_ui else f"http://{args.ui_host}:{args.ui_port}"
         return supervisor.main(supervisor.SupervisorConfig(bus=bus_config_from_args(args), nodes=nodes, ui_url=url))
 
@@ -136,9 +171,16 @@ def _dispatch(args: argparse.Namespace) -> int:
         from couture.recording.replay import ReplayConfig
         from couture.recording.replay import main as replay
 
-        cfg = ReplayConfig(path=args.path, bus=bus_config_from_args(args), rate=args.rate,
-                           loop=args.loop, wait_nodes=args.wait_nodes, wait_timeout_s=args.wait_timeout,
-                           lockstep=args.lockstep, lockstep_timeout_s=args.lockstep_timeout)
+        cfg = ReplayConfig(
+            path=args.path,
+            bus=bus_config_from_args(args),
+            rate=args.rate,
+            loop=args.loop,
+            wait_nodes=args.wait_nodes,
+            wait_timeout_s=args.wait_timeout,
+            lockstep=args.lockstep,
+            lockstep_timeout_s=args.lockstep_timeout,
+        )
         if args.topics:
             cfg.topics = args.topics
         replay(cfg)
@@ -163,23 +205,36 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.cmd == "export-foxglove":
         from couture.recording.foxglove import MANNEQUIN_OBJ, export_foxglove
 
-        st = export_foxglove(args.src, args.dst, strain_max=args.strain_max, body=None if args.no_body else MANNEQUIN_OBJ)
+        st = export_foxglove(
+            args.src, args.dst, strain_max=args.strain_max, body=None if args.no_body else MANNEQUIN_OBJ
+        )
         print(f"{args.dst}: {st.text()}")
         return 0
 
     if args.cmd == "drape":
-        return drape(args.pattern, args.out, bus=bus_config_from_args(args), timeout=args.timeout, solver=args.solver,
-                     solver_max_seconds=args.solver_max_seconds, verbose=args.verbose or args.drape_verbose)
+        return drape(
+            args.pattern,
+            args.out,
+            bus=bus_config_from_args(args),
+            timeout=args.timeout,
+            solver=args.solver,
+            solver_max_seconds=args.solver_max_seconds,
+            verbose=args.verbose or args.drape_verbose,
+        )
 
     if args.cmd == "bench":
         try:
             mod = importlib.import_module(f"couture.bench.{args.which}")
         except ModuleNotFoundError as e:
             if e.name and e.name.startswith("couture.bench"):
-                raise RuntimeError(f"benchmark {args.which!r} is not available yet (no couture.bench.{args.which})") from None
+                raise RuntimeError(
+                    f"benchmark {args.which!r} is not available yet (no couture.bench.{args.which})"
+                ) from None
             raise
         if not hasattr(mod, "main"):
-            raise RuntimeError(f"benchmark {args.which!r} is not available yet (couture.bench.{args.which} has no main)")
+            raise RuntimeError(
+                f"benchmark {args.which!r} is not available yet (couture.bench.{args.which} has no main)"
+            )
         return int(mod.main(args.args) or 0)
     raise AssertionError(args.cmd)
 
@@ -201,7 +256,7 @@ _DRAPE_EXIT_TEXT = {
     DrapeExit.USAGE: "bad command line",
     DrapeExit.NOT_CONVERGED: "the solver stopped short of its tolerance: drape written anyway, diagnosis printed",
     DrapeExit.BAD_DESIGN: "bad design: not a couture/design/v1 file, or the remesher rejected it "
-                          "(reason printed); no drape written",
+    "(reason printed); no drape written",
     DrapeExit.TIMEOUT: "no final fine drape within --timeout; no drape written",
 }
 DRAPE_EXIT_HELP = "exit status:\n" + "\n".join(f"  {int(c)}  {t}" for c, t in _DRAPE_EXIT_TEXT.items())
@@ -237,9 +292,16 @@ class _DrapeProgress:
             # tqdm takes a pseudo-terminal that reports no size as -1 rows and
             # then draws nothing; shutil falls back to 80x24 there
             cols, rows = shutil.get_terminal_size()
-            self.bars[level] = self._tqdm(total=100, desc=f"{level:>6}", leave=True, file=self.stream,
-                                          disable=None, ncols=cols, nrows=rows,
-                                          bar_format="{desc} {bar:30} {postfix}")
+            self.bars[level] = self._tqdm(
+                total=100,
+                desc=f"{level:>6}",
+                leave=True,
+                file=self.stream,
+                disable=None,
+                ncols=cols,
+                nrows=rows,
+                bar_format="{desc} {bar:30} {postfix}",
+            )
         bar = self.bars.get(level)
         if bar is not None:
             if math.isfinite(r) and r > 0:
@@ -247,8 +309,10 @@ class _DrapeProgress:
                 frac = math.log10(max(self.r0[level], r) / r) / span
                 # the fill keeps the best so far (a residual may rise for a while); the text shows the latest
                 bar.n = max(bar.n, int(round(100 * min(max(frac, 0.0), 1.0))))  # type: ignore[attr-defined]
-            bar.set_postfix_str(f"residual {r:.2e} -> {self.tol[level]:.0e}, {msg.iterations} its",  # type: ignore[attr-defined]
-                                refresh=True)
+            bar.set_postfix_str(
+                f"residual {r:.2e} -> {self.tol[level]:.0e}, {msg.iterations} its",  # type: ignore[attr-defined]
+                refresh=True,
+            )
         if msg.final:
             self.finals[level] = msg
             self._close(level)
@@ -270,12 +334,22 @@ def _describe(d, tol: float) -> str:
     """One line for a level's final drape: state, residual, iterations, time, solver, why."""
     state = "converged" if d.converged else "NOT converged"
     why = f": {d.diagnosis}" if d.diagnosis else ""
-    return (f"{state}, residual {d.residual:.2e} (tolerance {tol:.0e}) after {d.iterations} iterations in "
-            f"{d.wall_time_s:.1f} s ({d.solver}, {d.method}){why}")
+    return (
+        f"{state}, residual {d.residual:.2e} (tolerance {tol:.0e}) after {d.iterations} iterations in "
+        f"{d.wall_time_s:.1f} s ({d.solver}, {d.method}){why}"
+    )
 
 
-def drape(pattern: str, out: str, *, bus, timeout: float = 240.0, solver: str = "kinetic",
-          solver_max_seconds: float | None = None, verbose: bool = False) -> int:
+def drape(
+    pattern: str,
+    out: str,
+    *,
+    bus,
+    timeout: float = 240.0,
+    solver: str = "kinetic",
+    solver_max_seconds: float | None = None,
+    verbose: bool = False,
+) -> int:
     """Drape a pattern file: join the bus given by ``bus.connect`` or start the
     nodes (no UI), publish the pattern, wait for the final drape/fine of that
     generation while showing each level's residual, and write ``drape.obj``
@@ -322,8 +396,13 @@ def drape(pattern: str, out: str, *, bus, timeout: float = 240.0, solver: str = 
                 out_dir.mkdir(parents=True, exist_ok=True)
                 child_log = out_dir / "nodes.log"
                 child_log.write_bytes(b"")
-            sup = stack.enter_context(supervisor.Supervisor(supervisor.SupervisorConfig(
-                bus=bus, nodes=nodes, child_log=None if child_log is None else str(child_log))))
+            sup = stack.enter_context(
+                supervisor.Supervisor(
+                    supervisor.SupervisorConfig(
+                        bus=bus, nodes=nodes, child_log=None if child_log is None else str(child_log)
+                    )
+                )
+            )
             cfg = sup.child_bus
         client = stack.enter_context(Client(bus=cfg))
         stack.callback(progress.close)
@@ -346,8 +425,10 @@ def drape(pattern: str, out: str, *, bus, timeout: float = 240.0, solver: str = 
             print(f"[drape] fine: {_describe(d, tol['fine'])}", file=sys.stderr, flush=True)
         mesh = client.latest_mesh("fine")
         if mesh is None or mesh.generation != d.generation or mesh.X.shape[0] != d.x.shape[0]:
-            raise RuntimeError(f"drape/fine for generation {d.generation} arrived but no matching mesh/fine "
-                               f"(have {None if mesh is None else (mesh.generation, mesh.X.shape[0])})")
+            raise RuntimeError(
+                f"drape/fine for generation {d.generation} arrived but no matching mesh/fine "
+                f"(have {None if mesh is None else (mesh.generation, mesh.X.shape[0])})"
+            )
         out_dir.mkdir(parents=True, exist_ok=True)
         write_obj(out_dir / "drape.obj", d.x.numpy(), mesh.tris.numpy(), mesh.X.numpy())
         shutil.copyfile(pattern, out_dir / "pattern.json")
@@ -358,16 +439,29 @@ def drape(pattern: str, out: str, *, bus, timeout: float = 240.0, solver: str = 
         export_dxf(drafted, out_dir / "pattern.dxf")
         export_svg(drafted, out_dir / "pattern.svg")
         export_pdf(drafted, out_dir / "pattern.pdf")
-        (out_dir / "drape.json").write_text(json.dumps({
-            "generation": d.generation, "solver": d.solver, "method": d.method, "residual": d.residual,
-            "tolerance": tol["fine"], "iterations": d.iterations, "converged": d.converged, "diagnosis": d.diagnosis,
-            "wall_time_s": d.wall_time_s,
-        }, indent=2))
+        (out_dir / "drape.json").write_text(
+            json.dumps(
+                {
+                    "generation": d.generation,
+                    "solver": d.solver,
+                    "method": d.method,
+                    "residual": d.residual,
+                    "tolerance": tol["fine"],
+                    "iterations": d.iterations,
+                    "converged": d.converged,
+                    "diagnosis": d.diagnosis,
+                    "wall_time_s": d.wall_time_s,
+                },
+                indent=2,
+            )
+        )
         print(f"[drape] wrote {out_dir / 'drape.obj'}, drape.json and pattern.json/.dxf/.svg/.pdf", file=sys.stderr)
     if not d.converged:
-        print(f"couture drape: not converged: fine residual {d.residual:.2e} (tolerance {tol['fine']:.0e}) after "
-              f"{d.iterations} iterations, solver {d.solver} ({d.method}): {d.diagnosis or 'no diagnosis given'}",
-              file=sys.stderr)
+        print(
+            f"couture drape: not converged: fine residual {d.residual:.2e} (tolerance {tol['fine']:.0e}) after "
+            f"{d.iterations} iterations, solver {d.solver} ({d.method}): {d.diagnosis or 'no diagnosis given'}",
+            file=sys.stderr,
+        )
         return DrapeExit.NOT_CONVERGED
     return DrapeExit.CONVERGED
 

@@ -73,10 +73,20 @@ class Client:
 
     ``connect`` defaults to ``tcp/127.0.0.1:7447``, where ``couture up`` listens."""
 
-    def __init__(self, session: str = "default", connect: list[str] | None = None, *,
-                 listen: list[str] | None = None, name: str | None = None, bus: BusConfig | None = None) -> None:
-        self.cfg = bus or BusConfig(session=session, connect=list(connect) if connect is not None else [DEFAULT_ENDPOINT],
-                                    listen=list(listen) if listen is not None else ["tcp/127.0.0.1:0"])
+    def __init__(
+        self,
+        session: str = "default",
+        connect: list[str] | None = None,
+        *,
+        listen: list[str] | None = None,
+        name: str | None = None,
+        bus: BusConfig | None = None,
+    ) -> None:
+        self.cfg = bus or BusConfig(
+            session=session,
+            connect=list(connect) if connect is not None else [DEFAULT_ENDPOINT],
+            listen=list(listen) if listen is not None else ["tcp/127.0.0.1:0"],
+        )
         self.name = name or f"client-{os.getpid()}-{uuid.uuid4().hex[:6]}"
         self._cond = threading.Condition()
         self._drapes: dict[str, list[DrapeMsg]] = {"coarse": [], "fine": [], "predicted": []}
@@ -153,10 +163,14 @@ class Client:
     def wait_nodes(self, nodes: list[str], timeout: float = 10.0) -> None:
         missing = self.bus.wait_nodes(nodes, timeout)
         if missing:
-            raise TimeoutError(f"nodes {missing} not live on session {self.cfg.session} after {timeout:g} s "
-                               f"(live: {self.live_nodes() or 'none'})")
+            raise TimeoutError(
+                f"nodes {missing} not live on session {self.cfg.session} after {timeout:g} s "
+                f"(live: {self.live_nodes() or 'none'})"
+            )
 
-    def publish_pattern(self, design: Design | str | os.PathLike, *, name: str = "", wait_subscribers_s: float = 5.0) -> int:
+    def publish_pattern(
+        self, design: Design | str | os.PathLike, *, name: str = "", wait_subscribers_s: float = 5.0
+    ) -> int:
         """Publish a design (or a pattern JSON path) under a new ``design_id``;
         returns the generation it asks for (one more than the newest seen on
         the bus, at least 1). The remesher numbers designs: when it gives
@@ -170,8 +184,9 @@ class Client:
             self._seen_generation = gen
             self._own.add(design_id, gen)
         self._pattern_pub.wait_matching(wait_subscribers_s)
-        self._pattern_pub.put(PatternMsg(design=design, generation=gen, design_id=design_id, source="client",
-                                         name=name))
+        self._pattern_pub.put(
+            PatternMsg(design=design, generation=gen, design_id=design_id, source="client", name=name)
+        )
         return gen
 
     def _target(self, generation: int | None) -> tuple[int | None, bool]:
@@ -191,22 +206,46 @@ class Client:
             while (g := self._own.given(requested)) is None:
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    raise TimeoutError(f"no mesh of this client's design (generation {requested} asked for) "
-                                       f"within {timeout:g} s on session {self.cfg.session}")
+                    raise TimeoutError(
+                        f"no mesh of this client's design (generation {requested} asked for) "
+                        f"within {timeout:g} s on session {self.cfg.session}"
+                    )
                 self._cond.wait(left)
             return g
 
-    def send_edit(self, element: str, d: np.ndarray | list[float], *, phase: str = "drag", edit_id: str = "",
-                  dofs: list[str] | None = None, generation: int | None = None, **extra: object) -> EditMsg:
+    def send_edit(
+        self,
+        element: str,
+        d: np.ndarray | list[float],
+        *,
+        phase: str = "drag",
+        edit_id: str = "",
+        dofs: list[str] | None = None,
+        generation: int | None = None,
+        **extra: object,
+    ) -> EditMsg:
         """Send one edit message (press / drag / release); returns it (with its edit_id)."""
-        msg = EditMsg(edit_id=edit_id or uuid.uuid4().hex[:12], phase=phase, element=element,  # type: ignore[arg-type]
-                      dofs=list(dofs or ["x", "y"]), d=Array.from_numpy(np.asarray(d, np.float64)),
-                      generation=self._seen_generation if generation is None else generation, **extra)  # type: ignore[arg-type]
+        msg = EditMsg(
+            edit_id=edit_id or uuid.uuid4().hex[:12],
+            phase=phase,
+            element=element,  # type: ignore[arg-type]
+            dofs=list(dofs or ["x", "y"]),
+            d=Array.from_numpy(np.asarray(d, np.float64)),
+            generation=self._seen_generation if generation is None else generation,
+            **extra,
+        )  # type: ignore[arg-type]
         self._edit_pub.put(msg)
         return msg
 
-    def wait_drape(self, kind: str = "fine", generation: int | None = None, timeout: float = 60.0,
-                   *, converged: bool | None = None, final: bool | None = None) -> DrapeMsg:
+    def wait_drape(
+        self,
+        kind: str = "fine",
+        generation: int | None = None,
+        timeout: float = 60.0,
+        *,
+        converged: bool | None = None,
+        final: bool | None = None,
+    ) -> DrapeMsg:
         """The newest drape of ``kind`` ('fine', 'coarse', 'predicted') with
         generation >= ``generation`` (any if None) that arrives or has arrived
         since the client opened; for a generation this client's
@@ -221,9 +260,11 @@ class Client:
             if exact and target is None:
                 return None  # the remesher has not numbered our design yet
             for m in reversed(self._drapes[kind]):
-                if ((target is None or (m.generation == target if exact else m.generation >= target))
-                        and (converged is None or m.converged == converged)
-                        and (final is None or m.final == final)):
+                if (
+                    (target is None or (m.generation == target if exact else m.generation >= target))
+                    and (converged is None or m.converged == converged)
+                    and (final is None or m.final == final)
+                ):
                     return m
             return None
 
@@ -246,8 +287,10 @@ class Client:
         producer = EXPECTED_PRODUCERS[f"drape/{kind}"]
         hints = []
         if not meshes:
-            hints.append("no mesh/* message arrived: the remesher never answered"
-                         + ("" if "remesher" in live else " (remesher is not live)"))
+            hints.append(
+                "no mesh/* message arrived: the remesher never answered"
+                + ("" if "remesher" in live else " (remesher is not live)")
+            )
         if producer.endswith("*") and not any(n.startswith(producer[:-1]) for n in live):
             hints.append(f"no {producer} node is live")
         elif not producer.endswith("*") and producer not in live:
@@ -268,8 +311,9 @@ class Client:
                 return PatternRejected(generation, m.group(2), st.node)
         return None
 
-    def follow_drape(self, generation: int, timeout: float = 60.0, *,
-                     on_drape: Callable[[DrapeMsg], None] | None = None) -> DrapeMsg:
+    def follow_drape(
+        self, generation: int, timeout: float = 60.0, *, on_drape: Callable[[DrapeMsg], None] | None = None
+    ) -> DrapeMsg:
         """Wait for the final drape/fine of exactly ``generation``.
 
         Every drape/coarse and drape/fine of that generation (progress
@@ -311,11 +355,29 @@ class Client:
         with self._cond:
             return self._meshes.get(level)
 
-    def solve(self, mesh: GarmentMesh | MeshMsg, warm_start: np.ndarray | None = None, solver: str | None = None,
-              *, tol: float = 1e-4, max_iters: int = 10_000, max_seconds: float = 60.0,
-              timeout: float | None = None, design: Design | None = None) -> SolveResultMsg:
+    def solve(
+        self,
+        mesh: GarmentMesh | MeshMsg,
+        warm_start: np.ndarray | None = None,
+        solver: str | None = None,
+        *,
+        tol: float = 1e-4,
+        max_iters: int = 10_000,
+        max_seconds: float = 60.0,
+        timeout: float | None = None,
+        design: Design | None = None,
+    ) -> SolveResultMsg:
         """Solve ``mesh`` to equilibrium on a solver node (any if solver is None)."""
         mm = mesh if isinstance(mesh, MeshMsg) else mesh_to_msg(mesh)
-        req = SolveRequestMsg(mesh=mm, x_warm=as_array(warm_start, "float64"), tol=tol, max_iters=max_iters, max_seconds=max_seconds,
-                              solver=solver or "", design=design, generation=mm.generation, level=mm.level)
+        req = SolveRequestMsg(
+            mesh=mm,
+            x_warm=as_array(warm_start, "float64"),
+            tol=tol,
+            max_iters=max_iters,
+            max_seconds=max_seconds,
+            solver=solver or "",
+            design=design,
+            generation=mm.generation,
+            level=mm.level,
+        )
         return self.bus.solve(req, timeout=timeout if timeout is not None else max_seconds + 10.0)

@@ -154,8 +154,7 @@ class MeshMatcher(Generic[T]):
                 return MeshOutcome("stale")
             d = self._design_for(mesh)
             if d is None:
-                log.info("mesh/%s of generation %d arrived before its pattern; parked",
-                         mesh.level, mesh.generation)
+                log.info("mesh/%s of generation %d arrived before its pattern; parked", mesh.level, mesh.generation)
                 self._parked[mesh.level] = mesh
                 return MeshOutcome("parked")
             self._parked.pop(mesh.level, None)

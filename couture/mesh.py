@@ -88,12 +88,14 @@ def grid_sheet(width: float, height: float, nx: int, ny: int, *, jitter: float =
     area = width * height / max(1, (nx - 1) * (ny - 1)) * 0.5 * 1.2
     bx = np.linspace(0, width, nx)
     by = np.linspace(0, height, ny)
-    boundary = np.concatenate([
-        np.column_stack([bx[:-1], np.zeros(nx - 1)]),
-        np.column_stack([np.full(ny - 1, width), by[:-1]]),
-        np.column_stack([bx[::-1][:-1], np.full(nx - 1, height)]),
-        np.column_stack([np.zeros(ny - 1), by[::-1][:-1]]),
-    ])
+    boundary = np.concatenate(
+        [
+            np.column_stack([bx[:-1], np.zeros(nx - 1)]),
+            np.column_stack([np.full(ny - 1, width), by[:-1]]),
+            np.column_stack([bx[::-1][:-1], np.full(nx - 1, height)]),
+            np.column_stack([np.zeros(ny - 1), by[::-1][:-1]]),
+        ]
+    )
     k = len(boundary)
     segs = np.column_stack([np.arange(k), (np.arange(k) + 1) % k])
     out = tr.triangulate({"vertices": boundary, "segments": segs}, f"pq30a{area:.12f}Q")

@@ -105,10 +105,17 @@ class Supervisor:
             listen = list(cfg.listen)
         else:  # the well-known port (what Client connects to by default), or any free one
             listen = [DEFAULT_ENDPOINT if port_is_free(DEFAULT_PORT) else f"tcp/127.0.0.1:{free_port()}"]
-        self.bus_config = BusConfig(session=cfg.session, connect=list(cfg.connect), listen=listen, mode="router",
-                                    config_file=cfg.config_file, multicast=cfg.multicast)
-        self.child_bus = BusConfig(session=cfg.session, connect=listen, listen=["tcp/127.0.0.1:0"], mode="peer",
-                                   multicast=cfg.multicast)
+        self.bus_config = BusConfig(
+            session=cfg.session,
+            connect=list(cfg.connect),
+            listen=listen,
+            mode="router",
+            config_file=cfg.config_file,
+            multicast=cfg.multicast,
+        )
+        self.child_bus = BusConfig(
+            session=cfg.session, connect=listen, listen=["tcp/127.0.0.1:0"], mode="peer", multicast=cfg.multicast
+        )
         self.children = {s.name: _Child(s) for s in config.nodes}
         self.bus: Bus | None = None
         self.events: list[tuple[str, bool]] = []
@@ -159,8 +166,9 @@ class Supervisor:
         if self.config.child_log:
             # the child holds its own descriptor, so closing ours here is safe
             with open(self.config.child_log, "ab") as out:
-                c.proc = subprocess.Popen(cmd, env=env, start_new_session=True, stdin=subprocess.DEVNULL,
-                                          stdout=out, stderr=subprocess.STDOUT)
+                c.proc = subprocess.Popen(
+                    cmd, env=env, start_new_session=True, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT
+                )
         else:
             c.proc = subprocess.Popen(cmd, env=env, start_new_session=True, stdin=subprocess.DEVNULL)
         c.started = time.monotonic()
@@ -181,12 +189,24 @@ class Supervisor:
             if not c.spec.restart:
                 continue
             if c.restart_at is None:
-                c.backoff = min(self.config.backoff_max_s, c.backoff * 2 if c.backoff else self.config.backoff_initial_s)
+                c.backoff = min(
+                    self.config.backoff_max_s, c.backoff * 2 if c.backoff else self.config.backoff_initial_s
+                )
                 c.restart_at = now + c.backoff
-                log.warning("node %s (pid %d) exited with code %s after %.1f s; restart %d in %.1f s",
-                            c.spec.name, c.proc.pid, code, now - c.started, c.restarts + 1, c.backoff)
-                print(f"[up] node {c.spec.name} (pid {c.proc.pid}) exited with code {code}; restarting in {c.backoff:.1f} s",
-                      file=sys.stderr, flush=True)
+                log.warning(
+                    "node %s (pid %d) exited with code %s after %.1f s; restart %d in %.1f s",
+                    c.spec.name,
+                    c.proc.pid,
+                    code,
+                    now - c.started,
+                    c.restarts + 1,
+                    c.backoff,
+                )
+                print(
+                    f"[up] node {c.spec.name} (pid {c.proc.pid}) exited with code {code}; restarting in {c.backoff:.1f} s",
+                    file=sys.stderr,
+                    flush=True,
+                )
             elif now >= c.restart_at:
                 c.restarts += 1
                 self._spawn(c)
@@ -231,8 +251,12 @@ def main(config: SupervisorConfig) -> int:
     stop = StopFlag().install()
     try:
         with Supervisor(config) as sup:
-            print(f"[up] session {config.bus.session}: connect nodes and clients with --connect {sup.endpoint} "
-                  f"--session {config.bus.session}", file=sys.stderr, flush=True)
+            print(
+                f"[up] session {config.bus.session}: connect nodes and clients with --connect {sup.endpoint} "
+                f"--session {config.bus.session}",
+                file=sys.stderr,
+                flush=True,
+            )
             for name, pid in sup.pids().items():
                 print(f"[up]   {name:<18} pid {pid}", file=sys.stderr, flush=True)
             if config.ui_url:

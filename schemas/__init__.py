@@ -1,8 +1,8 @@
 """Message definitions and their versions (DESIGN.md §2).
 
-    from schemas import DrapeMsg, encode, decode, SchemaError
-    msg = DrapeMsg(level="fine", x=x, generation=3)   # numpy arrays accepted
-    data = encode(msg); back = decode(data, DrapeMsg); back.x.numpy()
+from schemas import DrapeMsg, encode, decode, SchemaError
+msg = DrapeMsg(level="fine", x=x, generation=3)   # numpy arrays accepted
+data = encode(msg); back = decode(data, DrapeMsg); back.x.numpy()
 """
 
 from schemas.arrays import DTYPES, Array, as_array, to_numpy
@@ -28,8 +28,31 @@ from schemas.messages import (
 from schemas.topics import TOPICS, Delivery, Topic, topic_spec, type_for_topic
 
 __all__ = [
-    "DTYPES", "Array", "as_array", "to_numpy", "DESIGN_SCHEMA", "Design",
-    "MESSAGE_TYPES", "REGISTRY", "TOPICS", "Topic", "Delivery", "topic_spec", "Message", "PatternMsg", "EditMsg",
-    "MeshMsg", "DrapeMsg", "StatusMsg", "SolveRequestMsg", "SolveResultMsg", "SchemaError",
-    "encode", "decode", "validate", "peek_schema", "json_schema", "type_for_topic",
+    "DTYPES",
+    "Array",
+    "as_array",
+    "to_numpy",
+    "DESIGN_SCHEMA",
+    "Design",
+    "MESSAGE_TYPES",
+    "REGISTRY",
+    "TOPICS",
+    "Topic",
+    "Delivery",
+    "topic_spec",
+    "Message",
+    "PatternMsg",
+    "EditMsg",
+    "MeshMsg",
+    "DrapeMsg",
+    "StatusMsg",
+    "SolveRequestMsg",
+    "SolveResultMsg",
+    "SchemaError",
+    "encode",
+    "decode",
+    "validate",
+    "peek_schema",
+    "json_schema",
+    "type_for_topic",
 ]

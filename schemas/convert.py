@@ -34,13 +34,21 @@ def mesh_to_msg(
         generation=mesh.generation if generation is None else generation,
         level=mesh.level,  # type: ignore[arg-type]
         mesh_generation=mesh_generation,
-        X=_wire("X", mesh.X), x0=_wire("x0", mesh.x0), tris=_wire("tris", mesh.tris),
-        tri_panel=_wire("tri_panel", mesh.tri_panel), panel_names=list(mesh.panel_names),
+        X=_wire("X", mesh.X),
+        x0=_wire("x0", mesh.x0),
+        tris=_wire("tris", mesh.tris),
+        tri_panel=_wire("tri_panel", mesh.tri_panel),
+        panel_names=list(mesh.panel_names),
         seam_emitters=_wire("seam_emitters", mesh.seam_emitters),
         seam_edges=_wire("seam_edges", mesh.seam_edges.reshape(-1, 2)),
-        seam_weights=_wire("seam_weights", mesh.seam_weights), pinned=_wire("pinned", mesh.pinned),
-        psi=as_array(psi, "float64"), psi_edit_id=psi_edit_id, unchanged=unchanged, design_id=design_id,
-        fine_parent_tri=as_array(fine_parent_tri, "int32"), fine_bary=as_array(fine_bary, "float64"),
+        seam_weights=_wire("seam_weights", mesh.seam_weights),
+        pinned=_wire("pinned", mesh.pinned),
+        psi=as_array(psi, "float64"),
+        psi_edit_id=psi_edit_id,
+        unchanged=unchanged,
+        design_id=design_id,
+        fine_parent_tri=as_array(fine_parent_tri, "int32"),
+        fine_bary=as_array(fine_bary, "float64"),
     )
 
 
@@ -48,9 +56,15 @@ def msg_to_mesh(msg: MeshMsg) -> GarmentMesh:
     """``couture/mesh/v1`` -> GarmentMesh (arrays copied, so writable).
     Ψ and the coarse->fine map stay on the message (``msg.psi.numpy()``)."""
     return GarmentMesh(
-        X=msg.X.numpy().copy(), tris=msg.tris.numpy().copy(), x0=msg.x0.numpy().copy(),
-        tri_panel=msg.tri_panel.numpy().copy(), panel_names=list(msg.panel_names),
-        seam_emitters=msg.seam_emitters.numpy().copy(), seam_edges=msg.seam_edges.numpy().copy(),
-        seam_weights=msg.seam_weights.numpy().copy(), pinned=msg.pinned.numpy().copy(),
-        level=msg.level, generation=msg.generation,
+        X=msg.X.numpy().copy(),
+        tris=msg.tris.numpy().copy(),
+        x0=msg.x0.numpy().copy(),
+        tri_panel=msg.tri_panel.numpy().copy(),
+        panel_names=list(msg.panel_names),
+        seam_emitters=msg.seam_emitters.numpy().copy(),
+        seam_edges=msg.seam_edges.numpy().copy(),
+        seam_weights=msg.seam_weights.numpy().copy(),
+        pinned=msg.pinned.numpy().copy(),
+        level=msg.level,
+        generation=msg.generation,
     )

@@ -360,7 +360,13 @@ class SolveResultMsg(Message, kw_only=True):
 
 
 MESSAGE_TYPES: tuple[type[Message], ...] = (
-    PatternMsg, EditMsg, MeshMsg, DrapeMsg, StatusMsg, SolveRequestMsg, SolveResultMsg,
+    PatternMsg,
+    EditMsg,
+    MeshMsg,
+    DrapeMsg,
+    StatusMsg,
+    SolveRequestMsg,
+    SolveResultMsg,
 )
 
 REGISTRY: dict[str, type[Message]] = {cls.TYPE: cls for cls in MESSAGE_TYPES}
@@ -482,13 +488,17 @@ def validate(msg: Message, path: str = "$") -> None:
         if problem:
             raise SchemaError(f"{t}: field `{fpath}`: {problem}")
         if a.dtype not in spec.dtypes:
-            raise SchemaError(f"{t}: field `{fpath}`: dtype {a.dtype} not allowed here (allowed: {', '.join(spec.dtypes)})")
+            raise SchemaError(
+                f"{t}: field `{fpath}`: dtype {a.dtype} not allowed here (allowed: {', '.join(spec.dtypes)})"
+            )
         if len(a.shape) != len(spec.shape):
             raise SchemaError(f"{t}: field `{fpath}`: shape {tuple(a.shape)} does not match {_shape_str(spec.shape)}")
         for size, want in zip(a.shape, spec.shape, strict=True):
             if isinstance(want, int):
                 if size != want:
-                    raise SchemaError(f"{t}: field `{fpath}`: shape {tuple(a.shape)} does not match {_shape_str(spec.shape)}")
+                    raise SchemaError(
+                        f"{t}: field `{fpath}`: shape {tuple(a.shape)} does not match {_shape_str(spec.shape)}"
+                    )
             elif want in dims and dims[want][0] != size:
                 other = dims[want]
                 raise SchemaError(
@@ -519,7 +529,21 @@ def json_schema(cls: type[Message]) -> bytes:
 
 
 __all__ = [
-    "SchemaError", "Message", "PatternMsg", "EditMsg", "MeshMsg", "DrapeMsg", "StatusMsg",
-    "SolveRequestMsg", "SolveResultMsg", "MESSAGE_TYPES", "REGISTRY",
-    "encode", "decode", "validate", "peek_schema", "json_schema", "ArraySpec",
+    "SchemaError",
+    "Message",
+    "PatternMsg",
+    "EditMsg",
+    "MeshMsg",
+    "DrapeMsg",
+    "StatusMsg",
+    "SolveRequestMsg",
+    "SolveResultMsg",
+    "MESSAGE_TYPES",
+    "REGISTRY",
+    "encode",
+    "decode",
+    "validate",
+    "peek_schema",
+    "json_schema",
+    "ArraySpec",
 ]

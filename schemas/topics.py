@@ -72,8 +72,15 @@ class Topic:
 
 TOPICS: tuple[Topic, ...] = (
     # A few patterns, so a late joiner also sees the last *valid* design when the newest one was rejected.
-    Topic("pattern", PatternMsg, Delivery(history=8), recorded=True, replayed=True, compared=False,
-          publisher="ui, scripts, sensitivity (3D tug)"),
+    Topic(
+        "pattern",
+        PatternMsg,
+        Delivery(history=8),
+        recorded=True,
+        replayed=True,
+        compared=False,
+        publisher="ui, scripts, sensitivity (3D tug)",
+    ),
     Topic("edit", EditMsg, EXPRESS, recorded=True, replayed=True, compared=False, publisher="ui, scripts"),
     Topic("mesh/coarse", MeshMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="remesher"),
     Topic("mesh/fine", MeshMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="remesher"),
@@ -81,8 +88,15 @@ TOPICS: tuple[Topic, ...] = (
     Topic("drape/coarse", DrapeMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="solver"),
     Topic("drape/fine", DrapeMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="solver"),
     Topic("status/*", StatusMsg, PLAIN, recorded=True, replayed=False, compared=False, publisher="every node"),
-    Topic("solve/request", SolveRequestMsg, PLAIN, recorded=True, replayed=False, compared=False,
-          publisher="any solve client"),
+    Topic(
+        "solve/request",
+        SolveRequestMsg,
+        PLAIN,
+        recorded=True,
+        replayed=False,
+        compared=False,
+        publisher="any solve client",
+    ),
     Topic("solve/result/*", SolveResultMsg, PLAIN, recorded=True, replayed=False, compared=True, publisher="solver"),
 )
 """The topic table. Readers look it up at call time (``schemas.topics.TOPICS``),
@@ -172,13 +186,30 @@ def markdown_table() -> str:
         key = t.key
         if key.endswith("/*"):
             key = key[:-1] + ("<node>" if key.startswith("status/") else "<solver>")
-        rows.append(f"| `{key}` | `{t.msg_type.TYPE}` | {t.delivery.name} | {'yes' if t.recorded else 'no'} "
-                    f"| {role} | {t.publisher} |")
+        rows.append(
+            f"| `{key}` | `{t.msg_type.TYPE}` | {t.delivery.name} | {'yes' if t.recorded else 'no'} "
+            f"| {role} | {t.publisher} |"
+        )
     return "\n".join(rows)
 
 
 __all__ = [
-    "Delivery", "Topic", "TOPICS", "HISTORY", "EXPRESS", "PREVIEW", "PLAIN", "key_intersects", "topic_spec",
-    "topics_matching", "type_for_topic", "type_for_keyexpr", "delivery_for", "history_for_subscription",
-    "is_recorded", "replayed_topics", "compared_topics", "markdown_table",
+    "Delivery",
+    "Topic",
+    "TOPICS",
+    "HISTORY",
+    "EXPRESS",
+    "PREVIEW",
+    "PLAIN",
+    "key_intersects",
+    "topic_spec",
+    "topics_matching",
+    "type_for_topic",
+    "type_for_keyexpr",
+    "delivery_for",
+    "history_for_subscription",
+    "is_recorded",
+    "replayed_topics",
+    "compared_topics",
+    "markdown_table",
 ]

@@ -12,9 +12,10 @@ from couture.bench import drape as bench
 
 pytestmark = pytest.mark.timeout(300)
 
-SMALL = {"schema": "couture/design/v1",
-         "design": {"sloper": {"kind": "skirt", "params": {}},
-                    "resolution": {"coarse_vertices": 300, "fine_vertices": 900}}}
+SMALL = {
+    "schema": "couture/design/v1",
+    "design": {"sloper": {"kind": "skirt", "params": {}}, "resolution": {"coarse_vertices": 300, "fine_vertices": 900}},
+}
 
 
 def finite(v) -> bool:
@@ -25,9 +26,27 @@ def test_bench_drape_writes_finite_figures_and_plots(tmp_path):
     design = tmp_path / "small_skirt.json"
     design.write_text(json.dumps(SMALL))
     out = tmp_path / "results"
-    assert bench.main(["--designs", str(design), "--solvers", "kinetic", "--sizes", "600,900",
-                       "--sweep-design", str(design), "--sweep-solver", "kinetic", "--max-seconds", "60",
-                       "--out", str(out)]) == 0
+    assert (
+        bench.main(
+            [
+                "--designs",
+                str(design),
+                "--solvers",
+                "kinetic",
+                "--sizes",
+                "600,900",
+                "--sweep-design",
+                str(design),
+                "--sweep-solver",
+                "kinetic",
+                "--max-seconds",
+                "60",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     rep = json.loads((out / "drape.json").read_text())
     assert rep["bench"] == "drape" and finite(rep["warmup_s"]["kinetic"])
     (case,) = rep["cases"]

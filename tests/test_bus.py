@@ -75,8 +75,12 @@ def test_two_processes_typed_messages_bad_message_and_sigterm(session_name):
         bus.subscribe("drape/fine", drapes)
         bus.subscribe("status/echo", statuses)
         bus.watch_nodes(presence)
-        child = subprocess.Popen([sys.executable, "-c", ECHO_NODE, session_name, endpoint],
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        child = subprocess.Popen(
+            [sys.executable, "-c", ECHO_NODE, session_name, endpoint],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         try:
             presence.wait(lambda e: e == ("echo", True))
             assert "echo" in bus.live_nodes()
@@ -91,7 +95,9 @@ def test_two_processes_typed_messages_bad_message_and_sigterm(session_name):
             bus.zenoh.put(bus.key("edit"), b"\x93\x01\x02")  # msgpack array, not a message
             bus.zenoh.put(bus.key("edit"), b"not msgpack \xc1\xff")
             edits.put(EditMsg(edit_id="boom", element="boom", d=np.zeros(2)))
-            st = statuses.wait(lambda s: s.counters.get("bad_messages", 0) >= 2 and s.counters.get("callback_errors", 0) >= 1)
+            st = statuses.wait(
+                lambda s: s.counters.get("bad_messages", 0) >= 2 and s.counters.get("callback_errors", 0) >= 1
+            )
             assert isinstance(st, StatusMsg) and st.pid == child.pid and st.node == "echo"
             assert "boom" in st.last_error or "callback" in st.last_error
 
@@ -142,8 +148,10 @@ def test_solve_request_reply_is_mirrored_as_messages(session_name):
 
 def test_callback_exception_does_not_stop_delivery_and_qos(session_name):
     port = free_port()
-    with open_session(BusConfig(session=session_name, listen=[f"tcp/127.0.0.1:{port}"])) as a, \
-         open_session(BusConfig(session=session_name, connect=[f"tcp/127.0.0.1:{port}"])) as b:
+    with (
+        open_session(BusConfig(session=session_name, listen=[f"tcp/127.0.0.1:{port}"])) as a,
+        open_session(BusConfig(session=session_name, connect=[f"tcp/127.0.0.1:{port}"])) as b,
+    ):
         got = Collector()
 
         def flaky(msg):
@@ -171,8 +179,13 @@ def test_node_in_process_publishes_status_and_token(session_name):
     with open_session(BusConfig(session=session_name, listen=[f"tcp/127.0.0.1:{port}"])) as obs:
         statuses = Collector()
         obs.subscribe("status/*", statuses)
-        node = Node("n1", BusConfig(session=session_name, connect=[f"tcp/127.0.0.1:{port}"]), kind="test",
-                    status_period_s=0.1, install_signals=False)
+        node = Node(
+            "n1",
+            BusConfig(session=session_name, connect=[f"tcp/127.0.0.1:{port}"]),
+            kind="test",
+            status_period_s=0.1,
+            install_signals=False,
+        )
         with node:
             node.count("widgets", 3)
             st = statuses.wait(lambda s: s.counters.get("widgets") == 3)
@@ -235,8 +248,9 @@ def test_client_pattern_drape_and_solve(session_name):
 
         def answer(p: PatternMsg) -> None:
             mesh_pub.put(mesh_to_msg(tiny, generation=p.generation, design_id=p.design_id))
-            drape_pub.put(DrapeMsg(level="fine", generation=p.generation, x=np.zeros((3, 3)), solver="fake",
-                                   converged=True))
+            drape_pub.put(
+                DrapeMsg(level="fine", generation=p.generation, x=np.zeros((3, 3)), solver="fake", converged=True)
+            )
 
         solver_bus.subscribe("pattern", answer, PatternMsg)
         solver_bus.serve_solve("fake", lambda req: SolveResultMsg(x=req.mesh.x0.numpy() * 2, converged=True))

@@ -28,13 +28,24 @@ pytestmark = pytest.mark.timeout(120)
 SMALL = {"sloper": {"kind": "skirt", "params": {}}, "resolution": {"coarse_vertices": 300, "fine_vertices": 900}}
 
 
-def _drape(tmp_path: Path, design: dict, *extra: str,
-           timeout: float = 100.0) -> tuple[subprocess.CompletedProcess, float]:
+def _drape(
+    tmp_path: Path, design: dict, *extra: str, timeout: float = 100.0
+) -> tuple[subprocess.CompletedProcess, float]:
     pattern = tmp_path / "p.json"
     pattern.write_text(json.dumps(design))
     # a session of its own, so parallel runs never see each other's drapes
-    cmd = [sys.executable, "-m", "couture.cli", "drape", str(pattern), "--out", str(tmp_path / "out"),
-           "--session", f"t{uuid.uuid4().hex[:8]}", *extra]
+    cmd = [
+        sys.executable,
+        "-m",
+        "couture.cli",
+        "drape",
+        str(pattern),
+        "--out",
+        str(tmp_path / "out"),
+        "--session",
+        f"t{uuid.uuid4().hex[:8]}",
+        *extra,
+    ]
     t0 = time.monotonic()
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=dict(os.environ))
     return r, time.monotonic() - t0
@@ -75,18 +86,40 @@ def test_rejected_design_exits_4_fast_naming_the_element(tmp_path):
     assert not (tmp_path / "out" / "drape.obj").exists()
 
 
-def _drape_msg(level: str, residual: float, *, generation: int = 1, final: bool = False,
-               converged: bool = False, diagnosis: str = "") -> DrapeMsg:
-    return DrapeMsg(level=level, x=np.zeros((3, 3)), residual=residual, iterations=7, solver="solver-newton",
-                    method="newton", generation=generation, final=final, converged=converged, diagnosis=diagnosis)
+def _drape_msg(
+    level: str,
+    residual: float,
+    *,
+    generation: int = 1,
+    final: bool = False,
+    converged: bool = False,
+    diagnosis: str = "",
+) -> DrapeMsg:
+    return DrapeMsg(
+        level=level,
+        x=np.zeros((3, 3)),
+        residual=residual,
+        iterations=7,
+        solver="solver-newton",
+        method="newton",
+        generation=generation,
+        final=final,
+        converged=converged,
+        diagnosis=diagnosis,
+    )
 
 
 def test_progress_prints_one_line_per_level_result():
     out = io.StringIO()
     progress = _DrapeProgress({"coarse": 1e-3, "fine": 1e-4}, stream=out)
-    for msg in (_drape_msg("coarse", 10.0), _drape_msg("coarse", 0.1), _drape_msg("coarse", 5e-4, final=True,
-                converged=True), _drape_msg("coarse", 4e-4), _drape_msg("fine", 0.2),
-                _drape_msg("fine", 3e-2, final=True, diagnosis="max_seconds 1 reached")):
+    for msg in (
+        _drape_msg("coarse", 10.0),
+        _drape_msg("coarse", 0.1),
+        _drape_msg("coarse", 5e-4, final=True, converged=True),
+        _drape_msg("coarse", 4e-4),
+        _drape_msg("fine", 0.2),
+        _drape_msg("fine", 3e-2, final=True, diagnosis="max_seconds 1 reached"),
+    ):
         progress(msg)
     progress.close()
     lines = out.getvalue().splitlines()
@@ -103,20 +136,33 @@ def test_follow_drape_passes_its_generation_on_and_raises_on_the_remeshers_rejec
     client = Client(name="t")
     seen: list[tuple[int, str, bool]] = []
     client._on_drape(_drape_msg("fine", 1.0, generation=1, final=True))  # an older design's drape
-    feeder = threading.Timer(0.2, lambda: [client._on_drape(m) for m in (
-        _drape_msg("coarse", 0.5, generation=2), _drape_msg("coarse", 1e-3, generation=2, final=True),
-        _drape_msg("fine", 1e-5, generation=2, final=True, converged=True))])
+    feeder = threading.Timer(
+        0.2,
+        lambda: [
+            client._on_drape(m)
+            for m in (
+                _drape_msg("coarse", 0.5, generation=2),
+                _drape_msg("coarse", 1e-3, generation=2, final=True),
+                _drape_msg("fine", 1e-5, generation=2, final=True, converged=True),
+            )
+        ],
+    )
     feeder.start()
     d = client.follow_drape(2, timeout=10, on_drape=lambda m: seen.append((m.generation, m.level, m.final)))
     assert (d.generation, d.level, d.converged) == (2, "fine", True)
     assert seen == [(2, "coarse", False), (2, "coarse", True), (2, "fine", True)]
 
     reason = "param:length: value -1 m is outside [0.38, 1] m"
-    client._on_status(StatusMsg(node="remesher", kind="remesher",
-                                last_error=f"pattern generation 2 rejected: {reason}"))
+    client._on_status(
+        StatusMsg(node="remesher", kind="remesher", last_error=f"pattern generation 2 rejected: {reason}")
+    )
     assert client.rejection(3) is None  # another generation's rejection says nothing about 3
-    threading.Timer(0.2, lambda: client._on_status(StatusMsg(
-        node="remesher", kind="remesher", last_error=f"pattern generation 3 rejected: {reason}"))).start()
+    threading.Timer(
+        0.2,
+        lambda: client._on_status(
+            StatusMsg(node="remesher", kind="remesher", last_error=f"pattern generation 3 rejected: {reason}")
+        ),
+    ).start()
     t0 = time.monotonic()
     with pytest.raises(PatternRejected) as e:
         client.follow_drape(3, timeout=10)

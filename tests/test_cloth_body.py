@@ -128,9 +128,11 @@ def incline_scene(angle_deg):
     offset = 0.01
     x0 = np.outer(sheet.X[:, 0], t) + np.outer(sheet.X[:, 1], [0, 0, 1.0]) + 0.9 * offset * n
     sheet.x0 = x0
-    model = ClothModel(sheet, Fabric(stretch_stiffness=50.0, bend_stiffness=1e-5, friction_static=0.5,
-                                     friction_kinetic=0.3),
-                       Scene(body=plane, friction=True, contact_stiffness=200.0, contact_offset=offset))
+    model = ClothModel(
+        sheet,
+        Fabric(stretch_stiffness=50.0, bend_stiffness=1e-5, friction_static=0.5, friction_kinetic=0.3),
+        Scene(body=plane, friction=True, contact_stiffness=200.0, contact_offset=offset),
+    )
     return model, x0, t
 
 
@@ -196,8 +198,12 @@ def winding_number(V, F, points):
         a, b, c = (V[F[:, k]] - p for k in range(3))
         la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
         num = np.einsum("ij,ij->i", a, np.cross(b, c))
-        den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la \
+        den = (
+            la * lb * lc
+            + np.einsum("ij,ij->i", a, b) * lc
+            + np.einsum("ij,ij->i", b, c) * la
             + np.einsum("ij,ij->i", c, a) * lb
+        )
         out[i] = np.sum(2 * np.arctan2(num, den)) / (4 * np.pi)
     return out
 

@@ -233,9 +233,10 @@ def test_dforces_dX_vs_rebuilt_models():
     for term in ["membrane", "bending", "gravity"]:
         an_t = model.dforces_dX(x, dX, [term])
         assert np.abs(an_t).max() > 0, term
-        fd_t = (ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X + h * dX}), FABRIC, scene).forces(x, [term])
-                - ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X - h * dX}), FABRIC, scene).forces(x, [term])
-                ) / (2 * h)
+        fd_t = (
+            ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X + h * dX}), FABRIC, scene).forces(x, [term])
+            - ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X - h * dX}), FABRIC, scene).forces(x, [term])
+        ) / (2 * h)
         np.testing.assert_allclose(an_t, fd_t, atol=1e-6 * np.abs(fd_t).max(), err_msg=term)
     # seams do not depend on X
     assert np.abs(model.dforces_dX(x, dX, ["seams"])).max() == 0

@@ -183,8 +183,13 @@ def test_seams_close_the_gap_between_panels():
 
     mesh = seamed_mesh(0)  # panels at x in [0, 0.1] and [0.12, 0.22]
     left = np.nonzero(mesh.X[:, 0] < 0.11)[0]
-    pins = left[[np.argmin(mesh.X[left, 0] + mesh.X[left, 1]), np.argmax(mesh.X[left, 1] - mesh.X[left, 0]),
-                 np.argmin(mesh.X[left, 1] - mesh.X[left, 0])]]
+    pins = left[
+        [
+            np.argmin(mesh.X[left, 0] + mesh.X[left, 1]),
+            np.argmax(mesh.X[left, 1] - mesh.X[left, 0]),
+            np.argmin(mesh.X[left, 1] - mesh.X[left, 0]),
+        ]
+    ]
     mesh.pinned = pins.astype(np.int32)
     model = ClothModel(mesh, Fabric(stretch_stiffness=50.0, bend_stiffness=1e-5), Scene(gravity=False))
     assert "seams" in model.terms

@@ -20,9 +20,11 @@ pytestmark = [pytest.mark.timeout(180), pytest.mark.slow]
 
 
 def skirt(length: float) -> Design:
-    return Design(sloper=Sloper(kind="skirt", params={"length": length}),
-                  resolution=Resolution(coarse_vertices=120, fine_vertices=240),
-                  scene=SceneFlags(body=False, friction=False))
+    return Design(
+        sloper=Sloper(kind="skirt", params={"length": length}),
+        resolution=Resolution(coarse_vertices=120, fine_vertices=240),
+        scene=SceneFlags(body=False, friction=False),
+    )
 
 
 def given_mesh(client: Client, requested: int, timeout: float = 60.0) -> int:
@@ -38,8 +40,9 @@ def given_mesh(client: Client, requested: int, timeout: float = 60.0) -> int:
 def test_two_clients_a_restarted_client_and_a_hostile_generation():
     session = f"id{uuid.uuid4().hex[:8]}"
     nodes = [n for n in supervisor.default_nodes(solvers=["newton"], ui=False) if n.name == "remesher"]
-    cfg = supervisor.SupervisorConfig(bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]),
-                                      nodes=nodes)
+    cfg = supervisor.SupervisorConfig(
+        bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]), nodes=nodes
+    )
     with supervisor.Supervisor(cfg) as sup:
         with Client(bus=sup.child_bus) as a:
             a.wait_nodes(["remesher"], timeout=60)

@@ -53,8 +53,10 @@ def session(tmp_path_factory):
         ("status/solver-kinetic", StatusMsg(node="solver-kinetic", last_error="boom")),
         ("drape/fine", DrapeMsg(level="fine", x=stretched(fine.X), generation=1, mesh_generation=1, converged=True)),
         ("status/solver-kinetic", StatusMsg(node="solver-kinetic", last_error="boom")),
-        ("drape/predicted", DrapeMsg(level="predicted", mesh_level="coarse", x=stretched(coarse.X),
-                                     generation=1, mesh_generation=1)),
+        (
+            "drape/predicted",
+            DrapeMsg(level="predicted", mesh_level="coarse", x=stretched(coarse.X), generation=1, mesh_generation=1),
+        ),
         ("drape/fine", DrapeMsg(level="fine", x=stretched(fine.X), generation=2, mesh_generation=7)),  # no such mesh
         ("status/solver-kinetic", StatusMsg(node="solver-kinetic", last_error="")),
     ]
@@ -73,10 +75,20 @@ def session(tmp_path_factory):
 def raw_messages(path, foxglove: bool):
     with open(path, "rb") as f:
         r = make_reader(f)
-        return [(ch.topic, ch.message_encoding, sch.name if sch else "", sch.encoding if sch else "",
-                 m.log_time, m.publish_time, m.sequence, m.data)
-                for sch, ch, m in r.iter_messages(log_time_order=False)
-                if ch.topic.startswith("/foxglove/") == foxglove]
+        return [
+            (
+                ch.topic,
+                ch.message_encoding,
+                sch.name if sch else "",
+                sch.encoding if sch else "",
+                m.log_time,
+                m.publish_time,
+                m.sequence,
+                m.data,
+            )
+            for sch, ch, m in r.iter_messages(log_time_order=False)
+            if ch.topic.startswith("/foxglove/") == foxglove
+        ]
 
 
 def decoded(path, topic):
@@ -209,8 +221,12 @@ def test_truncated_recording_exports_what_is_whole(session, tmp_path):
 
 def test_cli(session, tmp_path):
     out = tmp_path / "cli.mcap"
-    r = subprocess.run([sys.executable, "-m", "couture.cli", "export-foxglove", str(session["src"]), str(out),
-                        "--strain-max", "0.2"], capture_output=True, text=True, timeout=120)
+    r = subprocess.run(
+        [sys.executable, "-m", "couture.cli", "export-foxglove", str(session["src"]), str(out), "--strain-max", "0.2"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert r.returncode == 0, r.stderr
     assert "copied 12 messages" in r.stdout and "/foxglove/drape/fine: 2" in r.stdout
     assert len(decoded(out, "/foxglove/body")) == 1

@@ -31,14 +31,27 @@ def test_there_are_golden_cases():
 
 # -- the rule on hand-made drapes (no bus) -------------------------------------------------------
 
+
 def _drape(x, residual=5e-5, iterations=30, converged=True, level="fine", wall=1.0) -> DrapeMsg:
-    return DrapeMsg(level=level, x=Array.from_numpy(np.asarray(x), "float32"), residual=residual,
-                    iterations=iterations, converged=converged, wall_time_s=wall, generation=3,
-                    diagnosis="" if converged else "stalled: residual best 1e-3")
+    return DrapeMsg(
+        level=level,
+        x=Array.from_numpy(np.asarray(x), "float32"),
+        residual=residual,
+        iterations=iterations,
+        converged=converged,
+        wall_time_s=wall,
+        generation=3,
+        diagnosis="" if converged else "stalled: residual best 1e-3",
+    )
 
 
-RULE = PhysicsRule(tol={"coarse": 1e-3, "fine": 1e-4}, cap_m={"coarse": 0.03, "fine": 0.01},
-                   floor_m=1e-4, safety=2.0, compliance=lambda key, g: 10.0)
+RULE = PhysicsRule(
+    tol={"coarse": 1e-3, "fine": 1e-4},
+    cap_m={"coarse": 0.03, "fine": 0.01},
+    floor_m=1e-4,
+    safety=2.0,
+    compliance=lambda key, g: 10.0,
+)
 """bound for two drapes at 5e-5: 0.1 mm + 2 x 1e-4 x 10 m = 2.1 mm"""
 
 X = np.random.default_rng(0).normal(size=(50, 3)) * 0.2
@@ -46,8 +59,9 @@ X = np.random.default_rng(0).normal(size=(50, 3)) * 0.2
 
 def test_iterations_and_wall_time_are_reported_not_compared():
     tr = TopicReport("drape/fine")
-    devs = compare_drape("drape/fine gen=3", _drape(X, iterations=41, wall=1.0),
-                         _drape(X + 1e-3, iterations=43, wall=9.0), RULE, tr)
+    devs = compare_drape(
+        "drape/fine gen=3", _drape(X, iterations=41, wall=1.0), _drape(X + 1e-3, iterations=43, wall=9.0), RULE, tr
+    )
     assert devs == []
     row = tr.drapes[0]
     assert row.iterations == (41, 43) and row.wall_time_s == (1.0, 9.0)
@@ -91,6 +105,7 @@ def test_tolerances_are_the_solver_nodes():
 
 
 # -- the goldens -------------------------------------------------------------------------------
+
 
 def _assert_complete(report, name):
     case = load_case(name)
@@ -138,8 +153,12 @@ def test_make_reports_what_changed(capsys):
 ENVIRONMENTS = {
     # MKL's conditional numerical reproducibility: the golden is recorded under
     # AUTO (couture.solvers.linalg's default); COMPATIBLE takes another code path
-    "mkl-compatible-2-threads": {"MKL_CBWR": "COMPATIBLE", "MKL_NUM_THREADS": "2", "OMP_NUM_THREADS": "2",
-                                 "NUMBA_NUM_THREADS": "2"},
+    "mkl-compatible-2-threads": {
+        "MKL_CBWR": "COMPATIBLE",
+        "MKL_NUM_THREADS": "2",
+        "OMP_NUM_THREADS": "2",
+        "NUMBA_NUM_THREADS": "2",
+    },
     "1-thread": {"MKL_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"},
     # another factorization altogether (nodes.solver reads $COUTURE_SOLVER_BACKEND)
     "superlu": {"COUTURE_SOLVER_BACKEND": "splu"},

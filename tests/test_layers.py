@@ -35,8 +35,14 @@ BUS_FACING = (
 BUS_CODE = ("zenoh", "couture.bus", "couture.recording", "couture.client", "couture.supervisor", "couture.cli")
 """what only the bus-facing modules may import"""
 
-NUMERICAL = ("couture.cloth", "couture.solvers", "couture.remesh", "couture.sensitivity", "couture.pattern",
-             "couture.mesh")
+NUMERICAL = (
+    "couture.cloth",
+    "couture.solvers",
+    "couture.remesh",
+    "couture.sensitivity",
+    "couture.pattern",
+    "couture.mesh",
+)
 """packages that compute: no bus, no UI, no benchmark"""
 
 CONVERTERS = ("schemas.convert",)
@@ -119,24 +125,29 @@ def test_the_tree_keeps_the_import_rules():
     assert not bad, "import rules broken:\n" + "\n".join(bad)
 
 
-@pytest.mark.parametrize("module, source, rule", [
-    ("couture/cloth/probe.py", "import zenoh", "bus-facing"),
-    ("couture/pattern/probe.py", "from couture.bus import Node", "bus-facing"),
-    ("couture/solvers/probe.py", "def f():\n    from couture.client import Client\n", "bus-facing"),
-    ("couture/remesh/probe.py", "from couture.ui.state import Option", "numerical"),
-    ("couture/remesh/probe.py", "import nodes.remesher.main", "upward"),
-    ("nodes/solver/probe.py", "from nodes.sensitivity.main import main", "each other"),
-    ("nodes/solver/probe.py", "from ..ui import main", "each other"),
-    ("schemas/probe.py", "from couture.pattern import draft", "upward"),
-    ("couture/bus/probe.py", "from nodes.ui.main import UINode", "upward"),
-])
+@pytest.mark.parametrize(
+    "module, source, rule",
+    [
+        ("couture/cloth/probe.py", "import zenoh", "bus-facing"),
+        ("couture/pattern/probe.py", "from couture.bus import Node", "bus-facing"),
+        ("couture/solvers/probe.py", "def f():\n    from couture.client import Client\n", "bus-facing"),
+        ("couture/remesh/probe.py", "from couture.ui.state import Option", "numerical"),
+        ("couture/remesh/probe.py", "import nodes.remesher.main", "upward"),
+        ("nodes/solver/probe.py", "from nodes.sensitivity.main import main", "each other"),
+        ("nodes/solver/probe.py", "from ..ui import main", "each other"),
+        ("schemas/probe.py", "from couture.pattern import draft", "upward"),
+        ("couture/bus/probe.py", "from nodes.ui.main import UINode", "upward"),
+    ],
+)
 def test_a_forbidden_import_is_caught(module, source, rule):
     found = violations(ROOT / module, source)
     assert found and rule in found[0], found
 
 
 def test_allowed_imports_pass():
-    for module, source in (("couture/bus/probe.py", "import zenoh\nfrom couture.pattern import draft"),
-                           ("nodes/solver/probe.py", "from couture.bus import Node\nfrom . import main"),
-                           ("couture/remesh/probe.py", "from schemas.design import Design\nfrom . import service")):
+    for module, source in (
+        ("couture/bus/probe.py", "import zenoh\nfrom couture.pattern import draft"),
+        ("nodes/solver/probe.py", "from couture.bus import Node\nfrom . import main"),
+        ("couture/remesh/probe.py", "from schemas.design import Design\nfrom . import service"),
+    ):
         assert violations(ROOT / module, source) == []

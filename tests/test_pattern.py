@@ -16,13 +16,32 @@ BODY = ("waist_girth", "hip_girth", "bust_girth", "thigh_girth", "ankle_girth", 
 
 
 def edited_skirt(**params) -> Design:
-    return Design(sloper=Sloper(kind="skirt", params=params), strokes=[
-        Stroke(id="c1", kind="curve", panel="gore0", params={"segment": "hem", "points": [[0.3, 0.02], [0.7, -0.01]]}),
-        Stroke(id="d1", kind="dart", panel="gore0", params={"segment": "waist", "position": 0.5, "width": 0.02, "length": 0.1}),
-        Stroke(id="h1", kind="hole", panel="gore1", params={"anchor": "hem", "position": 0.5, "depth": 0.2, "radius": 0.03}),
-        Stroke(id="d2", kind="dart", panel="gore2",
-               params={"anchor": "waist", "position": 0.5, "depth": 0.12, "width": 0.02, "length": 0.14}),
-    ])
+    return Design(
+        sloper=Sloper(kind="skirt", params=params),
+        strokes=[
+            Stroke(
+                id="c1", kind="curve", panel="gore0", params={"segment": "hem", "points": [[0.3, 0.02], [0.7, -0.01]]}
+            ),
+            Stroke(
+                id="d1",
+                kind="dart",
+                panel="gore0",
+                params={"segment": "waist", "position": 0.5, "width": 0.02, "length": 0.1},
+            ),
+            Stroke(
+                id="h1",
+                kind="hole",
+                panel="gore1",
+                params={"anchor": "hem", "position": 0.5, "depth": 0.2, "radius": 0.03},
+            ),
+            Stroke(
+                id="d2",
+                kind="dart",
+                panel="gore2",
+                params={"anchor": "waist", "position": 0.5, "depth": 0.12, "width": 0.02, "length": 0.14},
+            ),
+        ],
+    )
 
 
 def test_options_min_default_max():
@@ -68,50 +87,102 @@ def test_out_of_range_names_the_option():
 def test_invalid_patterns_name_the_element():
     base = edited_skirt()
     # self-intersecting outline: a hem bulge that folds over itself
-    bad = Design(sloper=base.sloper, strokes=[Stroke(id="fold", kind="curve", panel="gore0",
-                                                    params={"segment": "hem", "points": [[0.1, 0.9], [0.2, -0.9]]})])
+    bad = Design(
+        sloper=base.sloper,
+        strokes=[
+            Stroke(
+                id="fold", kind="curve", panel="gore0", params={"segment": "hem", "points": [[0.1, 0.9], [0.2, -0.9]]}
+            )
+        ],
+    )
     with pytest.raises(PatternError) as e:
         validate(bad)
     assert "gore0" in e.value.element and "self-intersect" in str(e.value)
     # seams: unknown segment, sewn to itself, too unequal
-    for prm, msg in (({"a_panel": "gore0", "a_segment": "hemm", "b_panel": "gore1", "b_segment": "hem"}, "no segment"),
-                     ({"a_panel": "gore0", "a_segment": "hem", "b_panel": "gore0", "b_segment": "hem"}, "itself"),
-                     ({"a_panel": "gore0", "a_segment": "waist", "b_panel": "gore1", "b_segment": "side_left"}, "gather")):
+    for prm, msg in (
+        ({"a_panel": "gore0", "a_segment": "hemm", "b_panel": "gore1", "b_segment": "hem"}, "no segment"),
+        ({"a_panel": "gore0", "a_segment": "hem", "b_panel": "gore0", "b_segment": "hem"}, "itself"),
+        ({"a_panel": "gore0", "a_segment": "waist", "b_panel": "gore1", "b_segment": "side_left"}, "gather"),
+    ):
         with pytest.raises(PatternError, match=msg) as e:
             validate(Design(sloper=base.sloper, strokes=[Stroke(id="s9", kind="seam", params=prm)]))
         assert e.value.element == "s9"
     # darts outside the panel
     with pytest.raises(PatternError) as e:
-        validate(Design(sloper=base.sloper, strokes=[Stroke(id="dx", kind="dart", panel="gore0", params={
-            "anchor": "waist", "position": 0.5, "depth": 2.0, "width": 0.02, "length": 0.1})]))
+        validate(
+            Design(
+                sloper=base.sloper,
+                strokes=[
+                    Stroke(
+                        id="dx",
+                        kind="dart",
+                        panel="gore0",
+                        params={"anchor": "waist", "position": 0.5, "depth": 2.0, "width": 0.02, "length": 0.1},
+                    )
+                ],
+            )
+        )
     assert e.value.element == "dx"
     with pytest.raises(PatternError) as e:
-        validate(Design(sloper=base.sloper, strokes=[Stroke(id="db", kind="dart", panel="gore0", params={
-            "segment": "waist", "position": 0.99, "width": 0.05, "length": 0.1})]))
+        validate(
+            Design(
+                sloper=base.sloper,
+                strokes=[
+                    Stroke(
+                        id="db",
+                        kind="dart",
+                        panel="gore0",
+                        params={"segment": "waist", "position": 0.99, "width": 0.05, "length": 0.1},
+                    )
+                ],
+            )
+        )
     assert e.value.element == "db"
     # zero-length dart legs / non-finite values
     with pytest.raises(PatternError) as e:
-        validate(Design(sloper=base.sloper, strokes=[Stroke(id="dz", kind="dart", panel="gore0", params={
-            "segment": "waist", "position": 0.5, "width": 0.0, "length": 0.1})]))
+        validate(
+            Design(
+                sloper=base.sloper,
+                strokes=[
+                    Stroke(
+                        id="dz",
+                        kind="dart",
+                        panel="gore0",
+                        params={"segment": "waist", "position": 0.5, "width": 0.0, "length": 0.1},
+                    )
+                ],
+            )
+        )
     assert e.value.element == "dz"
     with pytest.raises(PatternError) as e:
-        validate(Design(sloper=base.sloper, strokes=[Stroke(id="c", kind="curve", panel="gore0", params={
-            "segment": "hem", "points": [[0.5, float("inf")]]})]))
+        validate(
+            Design(
+                sloper=base.sloper,
+                strokes=[
+                    Stroke(
+                        id="c", kind="curve", panel="gore0", params={"segment": "hem", "points": [[0.5, float("inf")]]}
+                    )
+                ],
+            )
+        )
     assert e.value.element == "cv:gore0:hem:0"
     # zero-length segment: a degenerate outline check on a drafted pattern
     from couture.pattern.validate import check_pattern
+
     p = draft(base)
     pn = p.panels[1]
     s = next(s for s in pn.segments if s.name == "waist")
-    pn.outline[s.start:s.stop + 1] = pn.outline[s.start]
+    pn.outline[s.start : s.stop + 1] = pn.outline[s.start]
     with pytest.raises(PatternError) as e:
         check_pattern(p)
     assert "gore1" in e.value.element
 
 
 def _counts(p):
-    return [(pn.name, len(pn.outline), [len(h) for h in pn.holes], [(s.name, s.start, s.stop) for s in pn.segments])
-            for pn in p.panels]
+    return [
+        (pn.name, len(pn.outline), [len(h) for h in pn.holes], [(s.name, s.start, s.stop) for s in pn.segments])
+        for pn in p.panels
+    ]
 
 
 @pytest.mark.parametrize("kind", sorted(SLOPERS))
@@ -197,9 +268,13 @@ def test_seams_and_darts_are_sewn():
 
 
 def test_symmetry_mirrors_live():
-    half = Design(sloper=Sloper(kind="skirt", params={"panels": 2}), strokes=[
-        Stroke(id="c1", kind="curve", panel="front", params={"segment": "hem", "points": [[0.3, 0.03]]}),
-        Stroke(id="sym", kind="symmetry", panel="front", params={"axis": "waist"})])
+    half = Design(
+        sloper=Sloper(kind="skirt", params={"panels": 2}),
+        strokes=[
+            Stroke(id="c1", kind="curve", panel="front", params={"segment": "hem", "points": [[0.3, 0.03]]}),
+            Stroke(id="sym", kind="symmetry", panel="front", params={"axis": "waist"}),
+        ],
+    )
     p = validate(half)
     f = p.panel("front")
     names = {s.name for s in f.segments}

@@ -64,6 +64,7 @@ def test_dxf_round_trip(tmp_path, units):
             assert np.abs(a - b).max() < 1e-4
         assert got["cut"] is not None and np.ptp(got["cut"][:, 0]) > np.ptp(pn.outline[:, 0])  # allowance outside
     import ezdxf
+
     doc = ezdxf.readfile(tmp_path / "p.dxf")
     assert doc.header["$INSUNITS"] == (4 if units == "mm" else 1)
     assert len(doc.modelspace().query("INSERT")) == len(p.panels)
@@ -83,6 +84,7 @@ def test_svg_and_pdf_true_scale(tmp_path):
     data = (tmp_path / "p.pdf").read_bytes()
     assert data.startswith(b"%PDF-") and b"%%EOF" in data[-64:]
     import re
+
     box = [float(v) for v in re.search(rb"/MediaBox\s*\[\s*([^\]]+)\]", data).group(1).split()]
     assert box[2] - box[0] == pytest.approx(size[0], abs=0.01) and box[3] - box[1] == pytest.approx(size[1], abs=0.01)
     # the page holds every panel at 72 pt per inch
@@ -91,6 +93,7 @@ def test_svg_and_pdf_true_scale(tmp_path):
 
 
 # ------------------------------------------------------------------ placement
+
 
 @pytest.fixture(scope="module")
 def body():
@@ -109,6 +112,7 @@ def _panel_points(panel, step=0.025):
     g = g[point_in_polygon(g, o)]
     # interior only: panels are meant to touch along their seams
     from scipy.spatial import cKDTree
+
     return g[cKDTree(o).query(g)[0] > 0.02]
 
 
@@ -117,7 +121,10 @@ def test_placement_panels_do_not_overlap(body, kind):
     """Panels of one garment do not overlap grossly where they are placed.
     (Clearance from the body is checked with the exact SDF, per sloper, in
     tests/test_placement_seams.py.)"""
-    for params in ({}, {o.name: o.max for o in SLOPERS[kind].options if o.name in ("length", "sleeve_length", "flare")}):
+    for params in (
+        {},
+        {o.name: o.max for o in SLOPERS[kind].options if o.name in ("length", "sleeve_length", "flare")},
+    ):
         p = draft(Design(sloper=Sloper(kind=kind, params=params)))
         clouds = {}
         for pn in p.panels:
@@ -125,6 +132,7 @@ def test_placement_panels_do_not_overlap(body, kind):
             X = place(pn, _panel_points(pn))
             clouds[pn.name] = X
         from scipy.spatial import cKDTree
+
         names = list(clouds)
         for a in range(len(names)):
             ta = cKDTree(clouds[names[a]])

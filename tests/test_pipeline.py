@@ -26,8 +26,9 @@ SMALL = Design(sloper=Sloper(kind="skirt"), resolution=Resolution(coarse_vertice
 
 def _sup(session: str) -> supervisor.Supervisor:
     nodes = [n for n in supervisor.default_nodes(solvers=["newton"], ui=False) if n.name != "sensitivity"]
-    cfg = supervisor.SupervisorConfig(bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]),
-                                      nodes=nodes)
+    cfg = supervisor.SupervisorConfig(
+        bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]), nodes=nodes
+    )
     return supervisor.Supervisor(cfg)
 
 
@@ -90,10 +91,10 @@ def test_two_solver_nodes_at_once_agree():
     from schemas.convert import msg_to_mesh
 
     session = f"p{uuid.uuid4().hex[:8]}"
-    nodes = [n for n in supervisor.default_nodes(solvers=["kinetic", "newton"], ui=False)
-             if n.name != "sensitivity"]
-    cfg = supervisor.SupervisorConfig(bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]),
-                                      nodes=nodes)
+    nodes = [n for n in supervisor.default_nodes(solvers=["kinetic", "newton"], ui=False) if n.name != "sensitivity"]
+    cfg = supervisor.SupervisorConfig(
+        bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]), nodes=nodes
+    )
     design = msgspec.structs.replace(SMALL, scene=msgspec.structs.replace(SMALL.scene, friction=False))
     with supervisor.Supervisor(cfg) as sup, Client(bus=sup.child_bus) as client:
         client.wait_nodes(["remesher", "solver-kinetic", "solver-newton"], timeout=60)

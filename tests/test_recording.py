@@ -30,8 +30,12 @@ CLI = [sys.executable, "-m", "couture.cli"]
 
 
 def _start_recorder(path: Path, session: str, endpoint: str, *extra: str) -> subprocess.Popen:
-    return subprocess.Popen([*CLI, "record", str(path), "--session", session, "--connect", endpoint, "--quiet", *extra],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [*CLI, "record", str(path), "--session", session, "--connect", endpoint, "--quiet", *extra],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _wait_recorder(bus, proc: subprocess.Popen) -> None:
@@ -60,8 +64,19 @@ class FakePipeline:
         mesh.generation = msg.generation
         self.mesh_pub.put(mesh_to_msg(mesh, mesh_generation=1))
         x = np.column_stack([mesh.X[:, 0], np.zeros(len(mesh.X)), -mesh.X[:, 1]]) + self.offset
-        self.drape_pub.put(DrapeMsg(level="fine", generation=msg.generation, mesh_generation=1, x=x,
-                                    residual=1e-5, iterations=42, solver="fake", method="kinetic", converged=True))
+        self.drape_pub.put(
+            DrapeMsg(
+                level="fine",
+                generation=msg.generation,
+                mesh_generation=1,
+                x=x,
+                residual=1e-5,
+                iterations=42,
+                solver="fake",
+                method="kinetic",
+                converged=True,
+            )
+        )
         self.done.set()
 
 
@@ -79,7 +94,9 @@ def test_record_replay_compare(tmp_path):
         pat = bus.publisher("pattern", PatternMsg)
         pat.put(PatternMsg(design=design, generation=1, source="test"))
         assert pipe.done.wait(10)
-        bus.publisher("edit", EditMsg).put(EditMsg(edit_id="e1", phase="press", element="hem", d=np.zeros(2), generation=1))
+        bus.publisher("edit", EditMsg).put(
+            EditMsg(edit_id="e1", phase="press", element="hem", d=np.zeros(2), generation=1)
+        )
         time.sleep(0.5)
         rec.send_signal(signal.SIGTERM)
         assert rec.wait(15) == 0, rec.communicate()[1]
@@ -105,8 +122,24 @@ def test_record_replay_compare(tmp_path):
             pipe = FakePipeline(bus, offset=offset)
             rec = _start_recorder(out, sb, endpoint)
             _wait_recorder(bus, rec)
-            r = subprocess.run([*CLI, "replay", str(golden), "--rate", "0", "--session", sb, "--connect", endpoint,
-                                "--wait-nodes", "recorder"], capture_output=True, text=True, timeout=30)
+            r = subprocess.run(
+                [
+                    *CLI,
+                    "replay",
+                    str(golden),
+                    "--rate",
+                    "0",
+                    "--session",
+                    sb,
+                    "--connect",
+                    endpoint,
+                    "--wait-nodes",
+                    "recorder",
+                ],
+                capture_output=True,
+                text=True,
+                timeout=30,
+            )
             assert r.returncode == 0, r.stderr
             assert pipe.done.wait(10)
             deadline = time.monotonic() + 5
@@ -124,8 +157,12 @@ def test_record_replay_compare(tmp_path):
 
     replay_into(bad, 1e-3)
     out_json = tmp_path / "cmp.json"
-    r = subprocess.run([*CLI, "compare", str(golden), str(bad), "--atol", "1e-6", "--rtol", "0", "--json", str(out_json)],
-                       capture_output=True, text=True, timeout=30)
+    r = subprocess.run(
+        [*CLI, "compare", str(golden), str(bad), "--atol", "1e-6", "--rtol", "0", "--json", str(out_json)],
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert r.returncode == 1
     assert "drape/fine" in r.stdout and "first deviation: drape/fine gen=1" in r.stdout and "FAIL" in r.stdout
     report = json.loads(out_json.read_text())

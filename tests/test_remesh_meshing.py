@@ -132,7 +132,9 @@ def test_unequal_seam_maps_by_normalized_arc_length():
         u_recv = (1 - w) * ua[int(a)] + w * ua[int(b)]
         assert u_recv == pytest.approx(ub[int(e)], abs=1e-12)
     # ends sewn to ends: the bottom corners and the top corners meet exactly
-    ends = {int(e): (int(a), int(b), w) for e, (a, b), w in zip(m.seam_emitters, m.seam_edges, m.seam_weights, strict=True)}
+    ends = {
+        int(e): (int(a), int(b), w) for e, (a, b), w in zip(m.seam_emitters, m.seam_edges, m.seam_weights, strict=True)
+    }
     a0, b0, w0 = ends[int(cb[0])]
     assert (w0 == 0 and a0 == ca[0]) or (w0 == 1 and b0 == ca[0])
     a1, b1, w1 = ends[int(cb[-1])]
@@ -161,7 +163,9 @@ def test_dart_notch_needs_no_special_case():
     assert np.allclose(m.X[tip_v], [0.3, 0.3])
     assert len(m.seam_emitters) > 0
     # no spring from the tip onto itself, no spring of a vertex to itself at all
-    recv_vertex = np.where(m.seam_weights == 0, m.seam_edges[:, 0], np.where(m.seam_weights == 1, m.seam_edges[:, 1], -1))
+    recv_vertex = np.where(
+        m.seam_weights == 0, m.seam_edges[:, 0], np.where(m.seam_weights == 1, m.seam_edges[:, 1], -1)
+    )
     assert not (recv_vertex == m.seam_emitters).any()
     assert tip_v not in m.seam_emitters[recv_vertex == tip_v]
     # the notch mouth corners are sewn to each other, mirrored legs meet by symmetry

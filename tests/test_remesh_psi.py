@@ -19,7 +19,9 @@ def _jac(d, fn):
     """PanelJacobians with J_i = fn(point) on every outline and hole vertex."""
     out = {}
     for p in d.panels:
-        out[p.name] = PanelJacobian(np.array([fn(x) for x in p.outline]), [np.array([fn(x) for x in h]) for h in p.holes])
+        out[p.name] = PanelJacobian(
+            np.array([fn(x) for x in p.outline]), [np.array([fn(x) for x in h]) for h in p.holes]
+        )
     return out
 
 
@@ -52,13 +54,25 @@ def test_psi_is_the_mesh_motion_of_the_moved_polylines(l_and_u):
     """Ψ·Δd equals the mesh motion for polylines moved by J·Δd (the map is linear, so exactly)."""
     d, r, cp, _ = l_and_u
     rng = np.random.default_rng(3)
-    J = {p.name: PanelJacobian(rng.normal(size=(len(p.outline), 2, 2)), [rng.normal(size=(len(h), 2, 2)) for h in p.holes])
-         for p in d.panels}
+    J = {
+        p.name: PanelJacobian(
+            rng.normal(size=(len(p.outline), 2, 2)), [rng.normal(size=(len(h), 2, 2)) for h in p.holes]
+        )
+        for p in d.panels
+    }
     dd = np.array([0.013, -0.007])
     P = psi(cp, J)
     assert np.abs(P).max() > 0.1
-    moved = DraftedPattern([Panel(p.name, p.outline + J[p.name].outline @ dd,
-                                  [h + jh @ dd for h, jh in zip(p.holes, J[p.name].holes, strict=True)]) for p in d.panels])
+    moved = DraftedPattern(
+        [
+            Panel(
+                p.name,
+                p.outline + J[p.name].outline @ dd,
+                [h + jh @ dd for h, jh in zip(p.holes, J[p.name].holes, strict=True)],
+            )
+            for p in d.panels
+        ]
+    )
     np.testing.assert_allclose(follow_pattern(cp, moved) - r.mesh.X, P @ dd, atol=1e-13)
     # on the boundary: polyline vertices carry their J, inserted points interpolate their edge's ends
     for lp in r.loops:
@@ -76,7 +90,9 @@ def test_panels_without_jacobian_stay_put():
     a = d.panels[0]
     P = psi(c, {"a": PanelJacobian(np.tile(np.eye(2), (len(a.outline), 1, 1)))})
     assert np.all(P[r.vertex_panel == 1] == 0)
-    np.testing.assert_allclose(P[r.vertex_panel == 0], np.broadcast_to(np.eye(2), P[r.vertex_panel == 0].shape), atol=1e-12)
+    np.testing.assert_allclose(
+        P[r.vertex_panel == 0], np.broadcast_to(np.eye(2), P[r.vertex_panel == 0].shape), atol=1e-12
+    )
     with pytest.raises(ValueError):
         psi(c, {"a": PanelJacobian(np.zeros((3, 2, 2)))})
 
@@ -84,7 +100,9 @@ def test_panels_without_jacobian_stay_put():
 def _slot_u(gap=0.04):
     """A U whose arms are separated by a narrow slot, with a hole in its base."""
     g = gap / 2
-    C = np.array([[0, 0], [1, 0], [1, 1], [0.5 + g, 1], [0.5 + g, 0.3], [0.5 - g, 0.3], [0.5 - g, 1], [0, 1]], np.float64)
+    C = np.array(
+        [[0, 0], [1, 0], [1, 1], [0.5 + g, 1], [0.5 + g, 0.3], [0.5 - g, 0.3], [0.5 - g, 1], [0, 1]], np.float64
+    )
     P, _ = polyline(C, [20, 20, 10, 14, 2, 14, 10, 20])
     H, _ = polyline(rect_corners(0.2, 0.08, 0.4, 0.1), 6)
     return Panel("U", P, holes=[H[::-1].copy()])
@@ -99,7 +117,11 @@ def test_pmvc_stays_inversion_free_where_mvc_inverts(pull):
     r = mesh_pattern(DraftedPattern([p]), 2000)
     x, y = p.outline[:, 0], p.outline[:, 1]
     ramp = np.clip((y - 0.3) / 0.7, 0, 1) * (x < 0.5)  # left arm, fading out at the base
-    J = {"U": PanelJacobian(ramp[:, None, None] * np.array([[0.0, 0.0], [0.0, 1.0]]), [np.zeros((len(p.holes[0]), 2, 2))])}
+    J = {
+        "U": PanelJacobian(
+            ramp[:, None, None] * np.array([[0.0, 0.0], [0.0, 1.0]]), [np.zeros((len(p.holes[0]), 2, 2))]
+        )
+    }
     dd = np.array([0.0, pull])
     inverted = {}
     for method in ("mvc", "pmvc"):
@@ -122,7 +144,9 @@ def test_pmvc_weights_ignore_hidden_boundary():
     assert not np.any((bX[:, 0] < 0.05) & (bX[:, 1] > 0.5))  # the left arm's outer wall
 
 
-@pytest.mark.parametrize("element", ["param:length", "cv:gore0:hem:0", "dart:waist_dart:width", "dart:diamond:position"])
+@pytest.mark.parametrize(
+    "element", ["param:length", "cv:gore0:hem:0", "dart:waist_dart:width", "dart:diamond:position"]
+)
 def test_jacobian_from_pattern_edit_matches_finite_differences(element):
     """With the pattern's own apply_edit: Ψ·Δd matches the FD motion of the mesh
     that follows the edited pattern (boundary and interior)."""

@@ -58,8 +58,11 @@ def test_flips_recover_the_constrained_delaunay_triangulation():
     r = mesh_pattern(d, 1200)
     c = build_coordinates(r)
     p = d.panels[0]
-    J = {"L": PanelJacobian(np.array([[[x[0], 0], [0, 0]] for x in p.outline]),
-                            [np.array([[[x[0], 0], [0, 0]] for x in p.holes[0]])])}
+    J = {
+        "L": PanelJacobian(
+            np.array([[[x[0], 0], [0, 0]] for x in p.outline]), [np.array([[[x[0], 0], [0, 0]] for x in p.holes[0]])]
+        )
+    }
     X = r.mesh.X + psi(c, J) @ np.array([1.5, 0.0])  # stretch x by 2.5
     T = r.mesh.tris
     assert (triangle_quality(X, T) > 0).all()

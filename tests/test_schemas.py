@@ -52,15 +52,25 @@ def mesh_msgs(draw):
     n = draw(st.integers(3, 6))
     m = draw(st.integers(0, 4))
     k = draw(st.integers(0, 3))
-    tris = np.array(draw(st.lists(st.lists(st.integers(0, n - 1), min_size=3, max_size=3), min_size=m, max_size=m)),
-                    np.int32).reshape(m, 3)
+    tris = np.array(
+        draw(st.lists(st.lists(st.integers(0, n - 1), min_size=3, max_size=3), min_size=m, max_size=m)), np.int32
+    ).reshape(m, 3)
     with_psi = draw(st.booleans())
     return MeshMsg(
-        **draw(headers()), level=draw(st.sampled_from(["coarse", "fine"])), mesh_generation=draw(ints),
-        X=_arr(draw, (n, 2)), x0=_arr(draw, (n, 3)), tris=tris, tri_panel=np.zeros(m, np.int32), panel_names=["front"],
-        seam_emitters=np.arange(k, dtype=np.int32) % n, seam_edges=np.zeros((k, 2), np.int32),
-        seam_weights=_arr(draw, (k,)), pinned=np.array([0], np.int32),
-        psi=_arr(draw, (n, 2, 2)) if with_psi else None, psi_edit_id="e1" if with_psi else "",
+        **draw(headers()),
+        level=draw(st.sampled_from(["coarse", "fine"])),
+        mesh_generation=draw(ints),
+        X=_arr(draw, (n, 2)),
+        x0=_arr(draw, (n, 3)),
+        tris=tris,
+        tri_panel=np.zeros(m, np.int32),
+        panel_names=["front"],
+        seam_emitters=np.arange(k, dtype=np.int32) % n,
+        seam_edges=np.zeros((k, 2), np.int32),
+        seam_weights=_arr(draw, (k,)),
+        pinned=np.array([0], np.int32),
+        psi=_arr(draw, (n, 2, 2)) if with_psi else None,
+        psi_edit_id="e1" if with_psi else "",
     )
 
 
@@ -68,10 +78,17 @@ def mesh_msgs(draw):
 def drape_msgs(draw):
     n = draw(st.integers(0, 5))
     return DrapeMsg(
-        **draw(headers()), level=draw(st.sampled_from(["coarse", "fine", "predicted"])),
+        **draw(headers()),
+        level=draw(st.sampled_from(["coarse", "fine", "predicted"])),
         x=_arr(draw, (n, 3), draw(st.sampled_from([np.float32, np.float64]))),
-        residual=draw(finite), iterations=draw(ints), solver=draw(text), method=draw(text), wall_time_s=draw(finite),
-        converged=draw(st.booleans()), diagnosis=draw(text), d=draw(st.one_of(st.none(), st.just(np.array([0.1, -0.2])))),
+        residual=draw(finite),
+        iterations=draw(ints),
+        solver=draw(text),
+        method=draw(text),
+        wall_time_s=draw(finite),
+        converged=draw(st.booleans()),
+        diagnosis=draw(text),
+        d=draw(st.one_of(st.none(), st.just(np.array([0.1, -0.2])))),
         error_estimate=draw(st.one_of(st.none(), finite)),
     )
 
@@ -84,9 +101,16 @@ def any_msgs(draw):
         strokes = [Stroke(id=draw(text), kind="curve", params={"t": draw(finite)})]
         return PatternMsg(**h, design=Design(strokes=strokes), source=draw(text))
     if kind == "EditMsg":
-        return EditMsg(**h, edit_id=draw(text), phase=draw(st.sampled_from(["press", "drag", "release"])),
-                       element=draw(text), dofs=["x"], d=_arr(draw, (2,)),
-                       view_proj=draw(st.one_of(st.none(), st.just(np.eye(4)))), viewport_px=[640, 480])
+        return EditMsg(
+            **h,
+            edit_id=draw(text),
+            phase=draw(st.sampled_from(["press", "drag", "release"])),
+            element=draw(text),
+            dofs=["x"],
+            d=_arr(draw, (2,)),
+            view_proj=draw(st.one_of(st.none(), st.just(np.eye(4)))),
+            viewport_px=[640, 480],
+        )
     if kind == "MeshMsg":
         return draw(mesh_msgs())
     if kind == "DrapeMsg":
@@ -95,8 +119,13 @@ def any_msgs(draw):
         return StatusMsg(**h, node=draw(text), pid=draw(ints), rates={"a": draw(finite)}, counters={"b": draw(ints)})
     if kind == "SolveRequestMsg":
         mm = draw(mesh_msgs())
-        return SolveRequestMsg(**h, request_id=draw(text), mesh=mm,
-                               x_warm=draw(st.one_of(st.none(), st.just(mm.x0.numpy()))), tol=draw(finite))
+        return SolveRequestMsg(
+            **h,
+            request_id=draw(text),
+            mesh=mm,
+            x_warm=draw(st.one_of(st.none(), st.just(mm.x0.numpy()))),
+            tol=draw(finite),
+        )
     return SolveResultMsg(**h, request_id=draw(text), solver=draw(text), x=_arr(draw, (2, 3)), residual=draw(finite))
 
 
@@ -116,7 +145,14 @@ def test_every_type_round_trips(msg):
 
 def test_all_types_covered_by_round_trip_strategy():
     assert {c.__name__ for c in MESSAGE_TYPES} == {
-        "PatternMsg", "EditMsg", "MeshMsg", "DrapeMsg", "StatusMsg", "SolveRequestMsg", "SolveResultMsg"}
+        "PatternMsg",
+        "EditMsg",
+        "MeshMsg",
+        "DrapeMsg",
+        "StatusMsg",
+        "SolveRequestMsg",
+        "SolveResultMsg",
+    }
     for name, cls in REGISTRY.items():
         assert name == cls.TYPE and name.startswith("couture/") and name.endswith("/v1")
 
@@ -248,8 +284,9 @@ def test_encode_rejects_bad_message_at_sender():
 
 
 def test_numpy_scalars_become_plain_numbers():
-    msg = DrapeMsg(x=np.zeros((1, 3), np.float32), generation=np.int64(3), residual=np.float32(0.5),
-                   iterations=np.int32(7))
+    msg = DrapeMsg(
+        x=np.zeros((1, 3), np.float32), generation=np.int64(3), residual=np.float32(0.5), iterations=np.int32(7)
+    )
     raw = msgspec.msgpack.decode(encode(msg))
     assert raw["generation"] == 3 and type(raw["generation"]) is int
     assert raw["residual"] == 0.5 and type(raw["residual"]) is float

@@ -232,8 +232,7 @@ def tube_on_cylinder(r=0.1, height=0.15, fabric=None):
     th = X[:, 0] / W * 2 * np.pi
     R = r + 0.005
     mesh.x0 = np.column_stack([R * np.cos(th), X[:, 1], -R * np.sin(th)])
-    return ClothModel(mesh, fabric or SimpleFabric(bend_stiffness=1e-5),
-                      Scene(body=CylinderBody(r), gravity=False))
+    return ClothModel(mesh, fabric or SimpleFabric(bend_stiffness=1e-5), Scene(body=CylinderBody(r), gravity=False))
 
 
 def test_free_spin_on_frictionless_cylinder_is_projected_out():

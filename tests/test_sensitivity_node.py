@@ -25,8 +25,9 @@ def camera() -> np.ndarray:
     """View-projection (world [m] -> clip) of a camera 2.6 m in front of the
     mannequin (+z) looking at it, y up (the UI's initial view)."""
     f, near, far = 1.0 / np.tan(np.deg2rad(25.0)), 0.1, 10.0
-    proj = np.array([[f, 0, 0, 0], [0, f, 0, 0],
-                     [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)], [0, 0, -1, 0]])
+    proj = np.array(
+        [[f, 0, 0, 0], [0, f, 0, 0], [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)], [0, 0, -1, 0]]
+    )
     view = np.eye(4)
     view[:3, 3] = [0.0, -0.15, -2.6]
     return proj @ view
@@ -45,19 +46,27 @@ def wait_for(cond, timeout: float, what: str):
 def test_press_drag_release_predicts_on_the_clients_design():
     session = f"s{uuid.uuid4().hex[:8]}"
     nodes = supervisor.default_nodes(solvers=["newton"], ui=False)
-    cfg = supervisor.SupervisorConfig(bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]),
-                                      nodes=[n for n in nodes if n.name != "recorder"])
+    cfg = supervisor.SupervisorConfig(
+        bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]),
+        nodes=[n for n in nodes if n.name != "recorder"],
+    )
     with supervisor.Supervisor(cfg) as sup, Client(bus=sup.child_bus) as client:
         client.wait_nodes(["remesher", "solver-newton", "sensitivity"], timeout=60)
         gen = client.publish_pattern(SMALL, name="small")
         fine = client.wait_drape("fine", generation=gen, timeout=200, final=True)
         n = fine.x.shape[0]
-        wait_for(lambda: (st := client.status.get("sensitivity")) is not None and st.counters.get("refactors", 0) >= 1,
-                 60, "the sensitivity node's refactorization at the drape")
+        wait_for(
+            lambda: (st := client.status.get("sensitivity")) is not None and st.counters.get("refactors", 0) >= 1,
+            60,
+            "the sensitivity node's refactorization at the drape",
+        )
         edit = client.send_edit("param:length", [0.0, 0.0], phase="press", param="length", dofs=["length"])
         # Ψ rides on the fine mesh already held, marked unchanged
-        wait_for(lambda: (m := client.latest_mesh("fine")) is not None and m.psi_edit_id == edit.edit_id, 30,
-                 "the remesher's Ψ for the press")
+        wait_for(
+            lambda: (m := client.latest_mesh("fine")) is not None and m.psi_edit_id == edit.edit_id,
+            30,
+            "the remesher's Ψ for the press",
+        )
         psi_mesh = client.latest_mesh("fine")
         assert psi_mesh.unchanged and psi_mesh.psi is not None and psi_mesh.mesh_generation == fine.mesh_generation
         mine = []
@@ -67,8 +76,9 @@ def test_press_drag_release_predicts_on_the_clients_design():
             return mine
 
         for k in range(1, 30):
-            client.send_edit("param:length", [0.002 * k, 0.0], phase="drag", edit_id=edit.edit_id, param="length",
-                             dofs=["length"])
+            client.send_edit(
+                "param:length", [0.002 * k, 0.0], phase="drag", edit_id=edit.edit_id, param="length", dofs=["length"]
+            )
             time.sleep(0.1)
             if predicted():
                 break
@@ -78,24 +88,53 @@ def test_press_drag_release_predicts_on_the_clients_design():
         assert p.method in ("linear", "gmls") and np.all(np.isfinite(p.x.numpy()))
         # a longer skirt: the predicted hem is lower than the drape's
         assert p.x.numpy()[:, 1].min() < fine.x.numpy()[:, 1].min()
-        client.send_edit("param:length", [0.05, 0.0], phase="release", edit_id=edit.edit_id, param="length",
-                         dofs=["length"])
+        client.send_edit(
+            "param:length", [0.05, 0.0], phase="release", edit_id=edit.edit_id, param="length", dofs=["length"]
+        )
         wait_for(lambda: any(d.diagnosis == "release" for d in predicted()), 30, "the release prediction")
-        st = wait_for(lambda: (m := client.status.get("sensitivity")) is not None
-                      and m.counters.get("press_columns", 0) >= 1 and m, 5, "the press counted in status")
+        st = wait_for(
+            lambda: (
+                (m := client.status.get("sensitivity")) is not None and m.counters.get("press_columns", 0) >= 1 and m
+            ),
+            5,
+            "the press counted in status",
+        )
         assert st.counters.get("predictions", 0) >= 2 and not st.last_error, st
 
         # a 3D tug of the hem (the sloper's length): its release publishes the
         # edited design, which the remesher numbers and meshes
         x = fine.x.numpy()
         hem = int(np.argmin(x[:, 1] - 0.1 * x[:, 2]))  # low, in front
-        tug = client.send_edit("", [0.0, 0.0], phase="press", param="length", picked_vertex=hem,
-                               view_proj=camera(), viewport_px=[800, 800], dofs=["length"])
-        wait_for(lambda: (m := client.latest_mesh("fine")) is not None and m.psi_edit_id == tug.edit_id, 30,
-                 "the remesher's Ψ for the tug")
+        tug = client.send_edit(
+            "",
+            [0.0, 0.0],
+            phase="press",
+            param="length",
+            picked_vertex=hem,
+            view_proj=camera(),
+            viewport_px=[800, 800],
+            dofs=["length"],
+        )
+        wait_for(
+            lambda: (m := client.latest_mesh("fine")) is not None and m.psi_edit_id == tug.edit_id,
+            30,
+            "the remesher's Ψ for the tug",
+        )
         time.sleep(0.5)  # the columns
-        client.send_edit("", [0.0, 40.0], phase="release", edit_id=tug.edit_id, param="length", picked_vertex=hem,
-                         view_proj=camera(), viewport_px=[800, 800], dofs=["length"])
-        new = wait_for(lambda: (m := client.latest_mesh("fine")) is not None and m.generation > gen and m, 60,
-                       "the mesh of the tugged design")
+        client.send_edit(
+            "",
+            [0.0, 40.0],
+            phase="release",
+            edit_id=tug.edit_id,
+            param="length",
+            picked_vertex=hem,
+            view_proj=camera(),
+            viewport_px=[800, 800],
+            dofs=["length"],
+        )
+        new = wait_for(
+            lambda: (m := client.latest_mesh("fine")) is not None and m.generation > gen and m,
+            60,
+            "the mesh of the tugged design",
+        )
         assert new.design_id and not new.unchanged

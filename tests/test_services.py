@@ -23,8 +23,11 @@ SIZE = 0.4
 
 def design(stretch: float = 20.0, **params: float) -> Design:
     """A skirt design whose scene has no body (so models build in milliseconds)."""
-    return Design(sloper=Sloper(kind="skirt", params=dict(params)), fabric=Fabric(stretch_stiffness=stretch),
-                  scene=SceneFlags(body=False, friction=False))
+    return Design(
+        sloper=Sloper(kind="skirt", params=dict(params)),
+        fabric=Fabric(stretch_stiffness=stretch),
+        scene=SceneFlags(body=False, friction=False),
+    )
 
 
 def sheet(level: str = "fine", generation: int = 1, n: int = 7) -> GarmentMesh:
@@ -211,8 +214,9 @@ def test_sensitivity_without_equilibrium_says_so():
 def camera() -> tuple[np.ndarray, tuple[int, int]]:
     """A camera 2 m in front of the sheet (+z), looking at it; y up."""
     f, near, far = 1.0 / np.tan(np.deg2rad(25.0)), 0.1, 10.0
-    proj = np.array([[f, 0, 0, 0], [0, f, 0, 0],
-                     [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)], [0, 0, -1, 0]])
+    proj = np.array(
+        [[f, 0, 0, 0], [0, f, 0, 0], [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)], [0, 0, -1, 0]]
+    )
     view = np.eye(4)
     view[:3, 3] = [-SIZE / 2, SIZE / 2, -2.0]
     return proj @ view, (800, 800)
@@ -227,8 +231,7 @@ def test_sensitivity_3d_tug_commits_through_apply_edit(equilibrium):
     bottom = int(np.argmin(mesh.X[:, 1] + 1e-3 * np.abs(mesh.X[:, 0] - SIZE / 2)))
     psi = np.zeros((mesh.n_vertices, 2, 2))
     psi[:, 1, 0] = -(SIZE - mesh.X[:, 1]) / SIZE  # a longer skirt: the hem goes down
-    s.press(Press(edit_id="t1", generation=1, param="length", picked_vertex=bottom, view_proj=vp,
-                  viewport=viewport))
+    s.press(Press(edit_id="t1", generation=1, param="length", picked_vertex=bottom, view_proj=vp, viewport=viewport))
     g = s.psi("t1", psi)
     assert g is not None and g.s_point is not None and g.s_point[1] < 0
     J = project_jacobian(vp, viewport, s.predictor.x_eq[bottom])
@@ -242,8 +245,7 @@ def test_sensitivity_3d_tug_commits_through_apply_edit(equilibrium):
     assert r is not None and r.design is not None and r.generation == 2
     assert r.design.sloper.params["length"] == pytest.approx(base.default + out.d[0])
     # a huge tug: the same edit path holds the option to its range
-    s.press(Press(edit_id="t2", generation=1, param="length", picked_vertex=bottom, view_proj=vp,
-                  viewport=viewport))
+    s.press(Press(edit_id="t2", generation=1, param="length", picked_vertex=bottom, view_proj=vp, viewport=viewport))
     s.psi("t2", psi)
     r = s.release("t2", 1e6 * sh / np.linalg.norm(sh))
     assert r is not None and r.design is not None

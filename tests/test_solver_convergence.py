@@ -39,8 +39,10 @@ DESIGNS = ["default_skirt", "dress", "shirt", "trousers"]
 def cascade(name: str, method: str, friction: bool):
     design = load_design(EXAMPLES / f"{name}.json")
     design = msgspec.structs.replace(
-        design, resolution=Resolution(coarse_vertices=400, fine_vertices=1500),
-        scene=msgspec.structs.replace(design.scene, friction=friction))
+        design,
+        resolution=Resolution(coarse_vertices=400, fine_vertices=1500),
+        scene=msgspec.structs.replace(design.scene, friction=friction),
+    )
     service = SolveService(method=method)
     service.set_design(design)
     for up in RemeshService().set_design(design, 1):

@@ -257,8 +257,16 @@ def test_cascadic_coarse_then_fine():
     # prolongation of the rest placement reproduces the fine rest placement (linear map)
     assert np.allclose(P.apply(coarse.mesh.tris, coarse.mesh.x0), fine.mesh.x0, atol=1e-12)
     levels = []
-    rc, rf = solve_cascadic(coarse, fine, P, get_solver("kinetic"), coarse.mesh.x0, tol_coarse=1e-4,
-                            tol_fine=1e-4, on_level=lambda lvl, r: levels.append((lvl, r.converged)))
+    rc, rf = solve_cascadic(
+        coarse,
+        fine,
+        P,
+        get_solver("kinetic"),
+        coarse.mesh.x0,
+        tol_coarse=1e-4,
+        tol_fine=1e-4,
+        on_level=lambda lvl, r: levels.append((lvl, r.converged)),
+    )
     assert levels == [("coarse", True), ("fine", True)]
     assert np.isfinite(rf.stats["prolongation_residual"])
     # no seams, no body: the polish has nothing to do
@@ -268,6 +276,7 @@ def test_cascadic_coarse_then_fine():
 
 
 # -- polish of the prolongated start (cascadic.polish_prolongated) on a small skirt
+
 
 @pytest.fixture(scope="module")
 def small_skirt():

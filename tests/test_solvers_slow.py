@@ -65,9 +65,11 @@ def test_sc_fig5_sphere_drape_all_solvers_agree_with_newton():
         return np.linalg.norm(x.mean(axis=0) - ref.x.mean(axis=0)) / size
 
     low_ver = abs(ver.x[:, 1].min() - ref.x[:, 1].min()) / size
-    print(f"kinetic {d_kin:.2e}; verlet centroid {centroid(ver.x):.2e} lowest {low_ver:.2e}; "
-          f"cold newton {newton_cold.converged} {newton_cold.residual:.2e} centroid {centroid(newton_cold.x):.2e} "
-          f"energy {m.energy(newton_cold.x) / m.energy(ref.x) - 1:+.2e}")
+    print(
+        f"kinetic {d_kin:.2e}; verlet centroid {centroid(ver.x):.2e} lowest {low_ver:.2e}; "
+        f"cold newton {newton_cold.converged} {newton_cold.residual:.2e} centroid {centroid(newton_cold.x):.2e} "
+        f"energy {m.energy(newton_cold.x) / m.energy(ref.x) - 1:+.2e}"
+    )
     assert d_kin < 1e-4
     assert centroid(ver.x) < 0.1 and low_ver < 0.1
     assert newton_cold.converged, newton_cold.diagnosis
@@ -117,9 +119,11 @@ def test_default_skirt_drapes_from_placement():
     ref = get_solver("newton").solve(free, kin.x, tol=5e-5, max_seconds=30)
     assert ref.converged, ref.diagnosis
     d = np.linalg.norm(kin.x - ref.x, axis=1).max()
-    print(f"skirt n={model.n}: kinetic with friction {kin_f.iterations} steps {kin_f.wall_time:.1f} s; "
-          f"frictionless kinetic {kin.iterations} steps {kin.wall_time:.1f} s, newton {ref.iterations} its "
-          f"{ref.wall_time:.1f} s, max distance {d * 1e3:.2f} mm")
+    print(
+        f"skirt n={model.n}: kinetic with friction {kin_f.iterations} steps {kin_f.wall_time:.1f} s; "
+        f"frictionless kinetic {kin.iterations} steps {kin.wall_time:.1f} s, newton {ref.iterations} its "
+        f"{ref.wall_time:.1f} s, max distance {d * 1e3:.2f} mm"
+    )
     assert d < 1e-3
     for x in (kin_f.x, kin.x, ref.x):
         assert model.body.phi_grad(x)[0].min() > 0.0

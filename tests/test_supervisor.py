@@ -25,8 +25,20 @@ def test_up_restarts_killed_node_and_ctrl_c_leaves_no_orphans():
     session = f"s{uuid.uuid4().hex[:8]}"
     port = free_port()
     sup = subprocess.Popen(
-        [sys.executable, "-m", "couture.cli", "up", "--no-ui", "--session", session, "--listen", f"tcp/127.0.0.1:{port}"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        [
+            sys.executable,
+            "-m",
+            "couture.cli",
+            "up",
+            "--no-ui",
+            "--session",
+            session,
+            "--listen",
+            f"tcp/127.0.0.1:{port}",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     seen_pids: set[int] = set()
     try:
@@ -88,9 +100,26 @@ def test_drape_fails_clearly_when_nothing_answers(tmp_path):
     pattern.write_text('{"sloper": {"kind": "skirt", "params": {}}}')
     session, port = f"d{uuid.uuid4().hex[:8]}", free_port()
     with open_session(BusConfig(session=session, listen=[f"tcp/127.0.0.1:{port}"])):
-        r = subprocess.run([sys.executable, "-m", "couture.cli", "drape", str(pattern), "--out", str(tmp_path / "out"),
-                            "--timeout", "1.5", "--session", session, "--connect", f"tcp/127.0.0.1:{port}"],
-                           capture_output=True, text=True, timeout=60)
+        r = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "couture.cli",
+                "drape",
+                str(pattern),
+                "--out",
+                str(tmp_path / "out"),
+                "--timeout",
+                "1.5",
+                "--session",
+                session,
+                "--connect",
+                f"tcp/127.0.0.1:{port}",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
     assert r.returncode == 5  # couture.cli.DrapeExit.TIMEOUT
     assert "no drape/fine for generation >= 1" in r.stderr
     assert "remesher never answered (remesher is not live)" in r.stderr and "no solver-* node is live" in r.stderr
@@ -98,6 +127,12 @@ def test_drape_fails_clearly_when_nothing_answers(tmp_path):
 
     bad = tmp_path / "bad.json"
     bad.write_text('{"sloper": {"kind": 3}}')
-    r = subprocess.run([sys.executable, "-m", "couture.cli", "drape", str(bad), "--out", str(tmp_path / "out")],
-                       capture_output=True, text=True, timeout=60)
-    assert r.returncode == 4 and "not a couture/design/v1 pattern" in r.stderr  # DrapeExit.BAD_DESIGN and "$.sloper.kind" in r.stderr
+    r = subprocess.run(
+        [sys.executable, "-m", "couture.cli", "drape", str(bad), "--out", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert (
+        r.returncode == 4 and "not a couture/design/v1 pattern" in r.stderr
+    )  # DrapeExit.BAD_DESIGN and "$.sloper.kind" in r.stderr

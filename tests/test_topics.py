@@ -26,12 +26,27 @@ ROOT = Path(__file__).resolve().parents[1]
 def dummy_topics(monkeypatch):
     """Two extra rows: an input that travels like a preview, an output with history."""
     extra = (
-        topics.Topic("dummy/in", DrapeMsg, topics.Delivery(express=True, drop=True), recorded=True,
-                     replayed=True, compared=False, publisher="test"),
-        topics.Topic("dummy/out/*", DrapeMsg, topics.Delivery(history=3), recorded=True,
-                     replayed=False, compared=True, publisher="test"),
-        topics.Topic("dummy/off", DrapeMsg, topics.PLAIN, recorded=False,
-                     replayed=False, compared=False, publisher="test"),
+        topics.Topic(
+            "dummy/in",
+            DrapeMsg,
+            topics.Delivery(express=True, drop=True),
+            recorded=True,
+            replayed=True,
+            compared=False,
+            publisher="test",
+        ),
+        topics.Topic(
+            "dummy/out/*",
+            DrapeMsg,
+            topics.Delivery(history=3),
+            recorded=True,
+            replayed=False,
+            compared=True,
+            publisher="test",
+        ),
+        topics.Topic(
+            "dummy/off", DrapeMsg, topics.PLAIN, recorded=False, replayed=False, compared=False, publisher="test"
+        ),
     )
     monkeypatch.setattr(topics, "TOPICS", topics.TOPICS + extra)
     return extra

@@ -105,8 +105,12 @@ def test_exports_reimport(ui):
     # couture.pattern's AAMA exporter puts each piece in a block; find the
     # closed polyline that has the outline's vertices, wherever it lives
     outline = ui.pattern.panels[0].outline
-    polys = [e for layout in (doc.modelspace(), *doc.blocks) for e in layout
-             if e.dxftype() == "POLYLINE" and e.is_closed and len(list(e.vertices)) == len(outline)]
+    polys = [
+        e
+        for layout in (doc.modelspace(), *doc.blocks)
+        for e in layout
+        if e.dxftype() == "POLYLINE" and e.is_closed and len(list(e.vertices)) == len(outline)
+    ]
     assert polys
     pts = np.array([tuple(v.dxf.location)[:2] for v in polys[0].vertices])
     np.testing.assert_allclose(pts.max(0) - pts.min(0), np.ptp(outline, axis=0) * 1000, rtol=1e-6)
@@ -163,9 +167,12 @@ def test_bus_adapter_roundtrip(tmp_path):
     ui = CoutureUI(UIConfig(port=free_port(), export_dir=tmp_path, show_body=False, draft_locally=False))
     ui.start()
     try:
-        with Node("ui", BusConfig(session=session, listen=[f"tcp/127.0.0.1:{port}"]), kind="ui",
-                  install_signals=False) as node, \
-                open_session(BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[])) as peer:
+        with (
+            Node(
+                "ui", BusConfig(session=session, listen=[f"tcp/127.0.0.1:{port}"]), kind="ui", install_signals=False
+            ) as node,
+            open_session(BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[])) as peer,
+        ):
             UIAdapter(node, ui, "ui")
             patterns, edits = [], []
             peer.subscribe("pattern", patterns.append)
@@ -227,8 +234,10 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
     ui.start()
     adapter = None
     try:
-        with Node("ui", bus_cfg, kind="ui", install_signals=False) as node, \
-                open_session(BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[])) as peer:
+        with (
+            Node("ui", bus_cfg, kind="ui", install_signals=False) as node,
+            open_session(BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[])) as peer,
+        ):
             adapter = UIAdapter(node, ui, "ui", bus_config=bus_cfg, record_dir=tmp_path / "rec")
             mesh, pattern = demo_sheet(300)
             mesh_pub = peer.publisher("mesh/fine", type(mesh_to_msg(mesh)))
@@ -239,8 +248,15 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
             assert wait_for(lambda: "fine" in ui.meshes)
 
             def drape(solver, dz, gen):
-                return DrapeMsg(level="fine", x=mesh.x0 + [0.0, 0.0, dz], residual=1e-5, solver=solver,
-                                method=solver.split("-")[1], generation=gen, converged=True)
+                return DrapeMsg(
+                    level="fine",
+                    x=mesh.x0 + [0.0, 0.0, dz],
+                    residual=1e-5,
+                    solver=solver,
+                    method=solver.split("-")[1],
+                    generation=gen,
+                    converged=True,
+                )
 
             def on_screen(dz):
                 return ui.view3d.x is not None and np.allclose(ui.view3d.x, mesh.x0 + [0.0, 0.0, dz])
@@ -260,9 +276,15 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
             # a sensitivity node comes and goes (a real liveliness token on the peer's bus):
             # while it is gone the status says predictions are off
             off = "Predictions are off"
-            with Node("sensitivity", BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[]),
-                      kind="sensitivity", install_signals=False):
-                assert wait_for(lambda: adapter.live.get("sensitivity") and not any(off in n for n in ui.status.notes), 20)
+            with Node(
+                "sensitivity",
+                BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[]),
+                kind="sensitivity",
+                install_signals=False,
+            ):
+                assert wait_for(
+                    lambda: adapter.live.get("sensitivity") and not any(off in n for n in ui.status.notes), 20
+                )
             assert wait_for(lambda: any(off in n for n in ui.status.notes), 20), ui.status.notes
 
             # record toggle: a recorder process joins this bus and writes an MCAP file
@@ -278,8 +300,11 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
             with open(path, "rb") as f:
                 reader = make_reader(f)
                 schemas = {s.name for s in reader.get_summary().schemas.values()}
-                gens = [decode(m.data, DrapeMsg).generation
-                        for _, ch, m in reader.iter_messages() if ch.topic.endswith("drape/fine")]
+                gens = [
+                    decode(m.data, DrapeMsg).generation
+                    for _, ch, m in reader.iter_messages()
+                    if ch.topic.endswith("drape/fine")
+                ]
             assert "couture/drape/v1" in schemas, schemas
             assert set(range(10, 15)) <= set(gens), f"recorded generations {gens}, expected 10..14"
     finally:
@@ -389,8 +414,11 @@ def test_client_framing_follows_the_canvas_until_the_designer_moves_the_camera()
     cam = Camera()
     client = SimpleNamespace(client_id=1, camera=cam, atomic=contextlib.nullcontext)
     connected = []
-    server = SimpleNamespace(on_client_connect=connected.append, get_clients=lambda: {1: client},
-                             initial_camera=SimpleNamespace(position=(0.0, 0.0, 9.0)))
+    server = SimpleNamespace(
+        on_client_connect=connected.append,
+        get_clients=lambda: {1: client},
+        initial_camera=SimpleNamespace(position=(0.0, 0.0, 9.0)),
+    )
     framing = ClientFraming(server, lambda aspect: ((0.0, 0.0, 1.0 / aspect), (0.0, 0.0, 0.0)))
     connected[0](client)
     cam.report(800, 800)
@@ -414,7 +442,13 @@ def test_a_tug_edit_becomes_an_edit_message():
     edit = Edit("e1", "drag", "param:length", ("length",), np.array([30.0, -4.0]), "length", pick)
     msg = decode(encode(edit_msg(edit, generation=3)), EditMsg)
     assert (msg.generation, msg.edit_id, msg.phase, msg.element, msg.dofs, msg.param) == (
-        3, "e1", "drag", "param:length", ["length"], "length")
+        3,
+        "e1",
+        "drag",
+        "param:length",
+        ["length"],
+        "length",
+    )
     assert (msg.picked_vertex, msg.picked_tri, msg.viewport_px) == (12, 40, [640, 480])
     np.testing.assert_array_equal(msg.d.numpy(), [30.0, -4.0])
     np.testing.assert_array_equal(msg.view_proj.numpy(), vp)

@@ -13,8 +13,13 @@ import numpy as np
 import pytest
 from browser.chromium import ARTIFACTS, available, browser_page, stable_camera, wait_camera, wait_until
 
-pytestmark = [pytest.mark.browser, pytest.mark.skipif(not available() and not os.environ.get("CI"),
-                                 reason="needs /usr/bin/chromium + playwright (scripts/setup.sh --test installs them; never skipped in CI)")]
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.skipif(
+        not available() and not os.environ.get("CI"),
+        reason="needs /usr/bin/chromium + playwright (scripts/setup.sh --test installs them; never skipped in CI)",
+    ),
+]
 
 
 @pytest.fixture(scope="module")

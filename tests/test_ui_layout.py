@@ -15,10 +15,13 @@ import numpy as np
 import pytest
 from browser.chromium import ARTIFACTS, available, browser_page, stable_camera, wait_camera, wait_until
 
-pytestmark = [pytest.mark.browser,
-              pytest.mark.skipif(not available() and not os.environ.get("CI"),
-                                 reason="needs /usr/bin/chromium + playwright (scripts/setup.sh --test installs them; "
-                                        "never skipped in CI)")]
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.skipif(
+        not available() and not os.environ.get("CI"),
+        reason="needs /usr/bin/chromium + playwright (scripts/setup.sh --test installs them; never skipped in CI)",
+    ),
+]
 
 DRESS = "couture/pattern/examples/dress.json"
 
@@ -84,8 +87,10 @@ def test_tool_panel_covers_no_pattern_piece(dress):
     cam = CameraState.from_viser(stable_camera(dress["c2"], page))
     box = _canvas_box(page, "#pattern")
     frame = page.frame_locator("#pattern")
-    controls = [frame.get_by_role("button", name=n) for n in
-                ("Add a curve point", "Draw a dart", "Sew two segments", "Mark symmetry", "Cancel tool")]
+    controls = [
+        frame.get_by_role("button", name=n)
+        for n in ("Add a curve point", "Draw a dart", "Sew two segments", "Mark symmetry", "Cancel tool")
+    ]
     controls.append(frame.get_by_text("show all handle names"))
     rects = [c.bounding_box() for c in controls]
     panel_lo = np.array([min(r["x"] for r in rects), min(r["y"] for r in rects)])
@@ -98,8 +103,9 @@ def test_tool_panel_covers_no_pattern_piece(dress):
         lo, hi = px.min(axis=0), px.max(axis=0)
         overlap = np.all(lo < panel_hi) and np.all(panel_lo < hi)
         assert not overlap, f"the tool panel {panel_lo}..{panel_hi} covers piece {p.name} {lo}..{hi}"
-        inside = (np.all(lo >= [box["x"], box["y"]])
-                  and np.all(hi <= [box["x"] + box["width"], box["y"] + box["height"]]))
+        inside = np.all(lo >= [box["x"], box["y"]]) and np.all(
+            hi <= [box["x"] + box["width"], box["y"] + box["height"]]
+        )
         assert inside, f"piece {p.name} {lo}..{hi} is not all in the pattern canvas {box}"
 
 

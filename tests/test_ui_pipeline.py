@@ -27,9 +27,15 @@ import numpy as np
 import pytest
 from browser.chromium import ARTIFACTS, available, browser_page, wait_until
 
-pytestmark = [pytest.mark.browser, pytest.mark.slow, pytest.mark.timeout(420),
-              pytest.mark.skipif(not available() and not os.environ.get("CI"),
-                                 reason="needs /usr/bin/chromium + playwright (scripts/setup.sh --test installs them; never skipped in CI)")]
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.slow,
+    pytest.mark.timeout(420),
+    pytest.mark.skipif(
+        not available() and not os.environ.get("CI"),
+        reason="needs /usr/bin/chromium + playwright (scripts/setup.sh --test installs them; never skipped in CI)",
+    ),
+]
 
 GARMENT_MIN_PIXELS = 800
 """pixels of the drape's colour the 3D view must show (the small skirt covers ~20k at 700x760)"""
@@ -40,8 +46,9 @@ def _small_design():
 
     # a curve stroke on the front gore's hem: its control point is a pattern-view handle
     hem_curve = Stroke(id="hem-curve", kind="curve", panel="gore0", params={"segment": "hem", "points": [[0.5, 0.0]]})
-    return Design(sloper=Sloper(kind="skirt"), resolution=Resolution(coarse_vertices=300, fine_vertices=900),
-                  strokes=[hem_curve])
+    return Design(
+        sloper=Sloper(kind="skirt"), resolution=Resolution(coarse_vertices=300, fine_vertices=900), strokes=[hem_curve]
+    )
 
 
 def _ui_port() -> int:
@@ -72,6 +79,7 @@ class Tap:
         def cb(msg):
             with self.lock:
                 lst.append(msg)
+
         return cb
 
     def counter(self, node: str, name: str) -> int:
@@ -133,11 +141,18 @@ def live(tmp_path_factory):
     nodes = supervisor.default_nodes(solvers=["newton"], ui=True, ui_port=port)
     for n in nodes:
         if n.name == "ui":
-            n.args += ["--design", str(design_file), "--export-dir", str(tmp / "exports"),
-                       "--record-dir", str(tmp / "recordings")]
+            n.args += [
+                "--design",
+                str(design_file),
+                "--export-dir",
+                str(tmp / "exports"),
+                "--record-dir",
+                str(tmp / "recordings"),
+            ]
     session = f"uip{uuid.uuid4().hex[:8]}"
-    cfg = supervisor.SupervisorConfig(bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]),
-                                      nodes=nodes)
+    cfg = supervisor.SupervisorConfig(
+        bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]), nodes=nodes
+    )
     t0 = time.monotonic()
     with supervisor.Supervisor(cfg) as sup, Client(bus=sup.child_bus) as client:
         tap = Tap(client)
@@ -188,8 +203,9 @@ def test_b_slider_change_redrapes(live):
     drape = client.wait_drape("fine", generation=new.generation, final=True, timeout=150)
     assert drape.generation == new.generation
     wait_until(lambda: f"generation {new.generation}" in _frame_text(page), 60, page)
-    shot = wait_until(lambda: (s := _view3d_shot(page)) and _diff_pixels(shot_a, s) > GARMENT_MIN_PIXELS and s,
-                      60, page)
+    shot = wait_until(
+        lambda: (s := _view3d_shot(page)) and _diff_pixels(shot_a, s) > GARMENT_MIN_PIXELS and s, 60, page
+    )
     (ARTIFACTS / "ui_pipeline_after_slider.png").write_bytes(shot)
     live["gen_b"] = new.generation
 
@@ -217,8 +233,12 @@ def _pattern_pixels(page, design, element: str) -> np.ndarray:
     dist -= 0.003  # the handles sit 3 mm above the pattern plane
     p = h.rest_position(pattern.panel(h.panel)) + off[h.panel]
     f = 0.5 * box["height"] / np.tan(0.5 * CAMERA_FOV)
-    return np.array([box["x"] + 0.5 * box["width"] + f * (p[0] - cx) / dist,
-                     box["y"] + 0.5 * box["height"] - f * (p[1] - cy) / dist])
+    return np.array(
+        [
+            box["x"] + 0.5 * box["width"] + f * (p[0] - cx) / dist,
+            box["y"] + 0.5 * box["height"] - f * (p[1] - cy) / dist,
+        ]
+    )
 
 
 def test_c_control_point_drag_predicts_then_solver_commits(live):
@@ -251,7 +271,7 @@ def test_c_control_point_drag_predicts_then_solver_commits(live):
     pos = start + np.array([0.0, 12.0])
 
     def predicted():
-        return [d for d in client.drapes("predicted")[max(0, n_pred0 - 64):] if d.edit_id == press.edit_id]
+        return [d for d in client.drapes("predicted")[max(0, n_pred0 - 64) :] if d.edit_id == press.edit_id]
 
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and len(predicted()) < 3:
@@ -261,11 +281,13 @@ def test_c_control_point_drag_predicts_then_solver_commits(live):
     page.screenshot(path=str(ARTIFACTS / "ui_pipeline_during_drag.png"))
     page.mouse.up()
     preds = predicted()
-    assert len(preds) >= 1, (f"no drape/predicted for edit {press.edit_id}; sensitivity status: "
-                             f"{client.status.get('sensitivity')}")
+    assert len(preds) >= 1, (
+        f"no drape/predicted for edit {press.edit_id}; sensitivity status: {client.status.get('sensitivity')}"
+    )
     assert preds[0].method in ("gmls", "linear", "mls") and preds[0].d is not None
-    release = wait_until(lambda: next((e for e in tap.edits if e.edit_id == press.edit_id and e.phase == "release"),
-                                      None), 30, page)
+    release = wait_until(
+        lambda: next((e for e in tap.edits if e.edit_id == press.edit_id and e.phase == "release"), None), 30, page
+    )
     drags = [e for e in tap.edits if e.edit_id == press.edit_id and e.phase == "drag"]
     assert drags and {e.element for e in drags} == {element}
     assert release.d.numpy()[1] < -0.005  # down the screen = -y in the pattern plane

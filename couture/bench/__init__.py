@@ -18,8 +18,13 @@ RESULTS_DIR = Path("bench/results")
 
 def add_out_arg(parser: argparse.ArgumentParser) -> None:
     """The shared ``--out DIR`` flag."""
-    parser.add_argument("--out", type=Path, default=RESULTS_DIR, metavar="DIR",
-                        help="results folder: writes NAME.json and its plots there (default: %(default)s)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=RESULTS_DIR,
+        metavar="DIR",
+        help="results folder: writes NAME.json and its plots there (default: %(default)s)",
+    )
 
 
 def write_results(out_dir: Path | str, name: str, results: Any, **json_kw: Any) -> Path:

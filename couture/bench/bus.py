@@ -54,7 +54,9 @@ def _publisher(args: argparse.Namespace) -> None:
                 due = t0 + n / args.rate
                 while (d := due - time.perf_counter()) > 0:
                     time.sleep(d if d > 0.002 else 0)
-            pub.put(DrapeMsg(level="fine", x=Array.from_numpy(x), generation=1, residual=1e-4, iterations=n, solver="bench"))
+            pub.put(
+                DrapeMsg(level="fine", x=Array.from_numpy(x), generation=1, residual=1e-4, iterations=n, solver="bench")
+            )
             n += 1
         bus.zenoh.put(bus.key("bench/done"), str(n).encode())
         time.sleep(0.5)
@@ -63,9 +65,23 @@ def _publisher(args: argparse.Namespace) -> None:
 
 def _spawn_pub(session: str, endpoint: str, rate: float, seconds: float) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, "-m", "couture.bench.bus", "--role", "pub", "--session", session, "--connect", endpoint,
-         "--rate", str(rate), "--seconds", str(seconds)],
-        stdout=subprocess.PIPE, text=True,
+        [
+            sys.executable,
+            "-m",
+            "couture.bench.bus",
+            "--role",
+            "pub",
+            "--session",
+            session,
+            "--connect",
+            endpoint,
+            "--rate",
+            str(rate),
+            "--seconds",
+            str(seconds),
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
     )
 
 
@@ -76,8 +92,11 @@ def run(seconds: float = 5.0, out: Path | str | None = RESULTS_DIR) -> dict:
     port = free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
     session = f"bench{os.getpid()}"
-    results: dict = {"machine": f"{platform.node()} ({os.cpu_count()} cpus)", "n_vertices": N_VERTICES,
-                     "latency_method": "one-way: receive time.time_ns() after decode+validate minus sender stamp_ns (same host clock)"}
+    results: dict = {
+        "machine": f"{platform.node()} ({os.cpu_count()} cpus)",
+        "n_vertices": N_VERTICES,
+        "latency_method": "one-way: receive time.time_ns() after decode+validate minus sender stamp_ns (same host clock)",
+    }
     with open_session(BusConfig(session=session, listen=[endpoint])) as bus:
         lat: list[float] = []
         count = [0, 0.0, 0.0]  # received, first t, last t
@@ -99,6 +118,7 @@ def run(seconds: float = 5.0, out: Path | str | None = RESULTS_DIR) -> dict:
 
         def sub_raw_size(k, d, t):
             size[0] = len(d)
+
         probe = bus.subscribe_raw(bus.key("drape/fine"), sub_raw_size)
 
         # 1. latency at 60 Hz
@@ -107,9 +127,14 @@ def run(seconds: float = 5.0, out: Path | str | None = RESULTS_DIR) -> dict:
         done.wait(5)
         time.sleep(0.2)
         a = np.array(lat[5:])  # first few include connection warm-up
-        results["latency_60hz"] = {"sent": sent, "received": count[0], "payload_bytes": size[0],
-                                   "p50_ms": float(np.percentile(a, 50)), "p99_ms": float(np.percentile(a, 99)),
-                                   "max_ms": float(a.max())}
+        results["latency_60hz"] = {
+            "sent": sent,
+            "received": count[0],
+            "payload_bytes": size[0],
+            "p50_ms": float(np.percentile(a, 50)),
+            "p99_ms": float(np.percentile(a, 99)),
+            "max_ms": float(a.max()),
+        }
         probe.undeclare()
 
         # 2. throughput
@@ -121,15 +146,31 @@ def run(seconds: float = 5.0, out: Path | str | None = RESULTS_DIR) -> dict:
         done.wait(5)
         time.sleep(0.3)
         dt = max(count[2] - count[1], 1e-9)
-        results["throughput"] = {"sent": sent, "received": count[0], "msgs_per_s": count[0] / dt,
-                                 "MB_per_s": count[0] * size[0] / dt / 1e6, "lost": sent - count[0]}
+        results["throughput"] = {
+            "sent": sent,
+            "received": count[0],
+            "msgs_per_s": count[0] / dt,
+            "MB_per_s": count[0] * size[0] / dt / 1e6,
+            "lost": sent - count[0],
+        }
 
         # 3. recorder at 100 Hz, then flat out
         for label, rate, secs in (("recorder_100hz", 100, seconds), ("recorder_max", 0, 3.0)):
             with tempfile.TemporaryDirectory() as tmp:
                 path = os.path.join(tmp, "bench.mcap")
-                rec = subprocess.Popen([sys.executable, "-m", "couture.recording", path, "--session", session,
-                                        "--connect", endpoint, "--quiet"])
+                rec = subprocess.Popen(
+                    [
+                        sys.executable,
+                        "-m",
+                        "couture.recording",
+                        path,
+                        "--session",
+                        session,
+                        "--connect",
+                        endpoint,
+                        "--quiet",
+                    ]
+                )
                 try:
                     if bus.wait_nodes(["recorder"], 15.0):
                         raise RuntimeError("recorder did not come up")
@@ -149,13 +190,21 @@ def run(seconds: float = 5.0, out: Path | str | None = RESULTS_DIR) -> dict:
                 nbytes = sum(len(m.data) for m in msgs)
                 span = (msgs[-1].log_time - msgs[0].log_time) / 1e9 if len(msgs) > 1 else 1e-9
                 results[label] = {
-                    "sent": sent, "recorded": len(msgs), "lost": sent - len(msgs),
-                    "MB_per_s": nbytes / span / 1e6, "msgs_per_s": len(msgs) / span,
-                    "file_MB": os.path.getsize(path) / 1e6, "publish_s": t_sent - t0, "finalize_s": t_done - t_sent,
+                    "sent": sent,
+                    "recorded": len(msgs),
+                    "lost": sent - len(msgs),
+                    "MB_per_s": nbytes / span / 1e6,
+                    "msgs_per_s": len(msgs) / span,
+                    "file_MB": os.path.getsize(path) / 1e6,
+                    "publish_s": t_sent - t0,
+                    "finalize_s": t_done - t_sent,
                 }
     lt = results["latency_60hz"]
-    results["goals"] = {"p50<=1ms": lt["p50_ms"] <= 1.0, "p99<=3ms": lt["p99_ms"] <= 3.0,
-                        "recorder keeps 100 drapes/s": results["recorder_100hz"]["lost"] == 0}
+    results["goals"] = {
+        "p50<=1ms": lt["p50_ms"] <= 1.0,
+        "p99<=3ms": lt["p99_ms"] <= 3.0,
+        "recorder keeps 100 drapes/s": results["recorder_100hz"]["lost"] == 0,
+    }
     if out:
         write_results(out, "bus", results)
     return results
@@ -163,17 +212,19 @@ def run(seconds: float = 5.0, out: Path | str | None = RESULTS_DIR) -> dict:
 
 def table(r: dict) -> str:
     lt, th, r1, rm = r["latency_60hz"], r["throughput"], r["recorder_100hz"], r["recorder_max"]
-    return "\n".join([
-        f"bus bench: {r['n_vertices']}-vertex drape, {lt['payload_bytes'] / 1e3:.0f} KB payload, {r['machine']}",
-        f"{'measure':<36} {'value':>12}  goal",
-        f"{'latency p50 @60 Hz (one-way)':<36} {lt['p50_ms']:>9.3f} ms  <= 1 ms",
-        f"{'latency p99 @60 Hz (one-way)':<36} {lt['p99_ms']:>9.3f} ms  <= 3 ms",
-        f"{'latency max @60 Hz':<36} {lt['max_ms']:>9.3f} ms",
-        f"{'throughput (as fast as possible)':<36} {th['msgs_per_s']:>7.0f} msg/s  ({th['MB_per_s']:.0f} MB/s, lost {th['lost']})",
-        f"{'recorder @100 Hz':<36} {r1['MB_per_s']:>7.1f} MB/s  recorded {r1['recorded']}/{r1['sent']} (lost {r1['lost']})",
-        f"{'recorder flat out':<36} {rm['MB_per_s']:>7.1f} MB/s  recorded {rm['recorded']}/{rm['sent']} ({rm['msgs_per_s']:.0f} msg/s)",
-        "goals: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in r["goals"].items()),
-    ])
+    return "\n".join(
+        [
+            f"bus bench: {r['n_vertices']}-vertex drape, {lt['payload_bytes'] / 1e3:.0f} KB payload, {r['machine']}",
+            f"{'measure':<36} {'value':>12}  goal",
+            f"{'latency p50 @60 Hz (one-way)':<36} {lt['p50_ms']:>9.3f} ms  <= 1 ms",
+            f"{'latency p99 @60 Hz (one-way)':<36} {lt['p99_ms']:>9.3f} ms  <= 3 ms",
+            f"{'latency max @60 Hz':<36} {lt['max_ms']:>9.3f} ms",
+            f"{'throughput (as fast as possible)':<36} {th['msgs_per_s']:>7.0f} msg/s  ({th['MB_per_s']:.0f} MB/s, lost {th['lost']})",
+            f"{'recorder @100 Hz':<36} {r1['MB_per_s']:>7.1f} MB/s  recorded {r1['recorded']}/{r1['sent']} (lost {r1['lost']})",
+            f"{'recorder flat out':<36} {rm['MB_per_s']:>7.1f} MB/s  recorded {rm['recorded']}/{rm['sent']} ({rm['msgs_per_s']:.0f} msg/s)",
+            "goals: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in r["goals"].items()),
+        ]
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

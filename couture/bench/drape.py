@@ -62,6 +62,7 @@ HISTORY_POINTS = 400
 
 # -- one cascadic drape ---------------------------------------------------------------------------
 
+
 def load(design: str) -> tuple[str, Any]:
     """(name, Design) for an example name (``dress``) or a pattern file path."""
     from couture.pattern.io import load_design
@@ -80,7 +81,8 @@ def with_options(design: Any, *, friction: bool | None = None, fine_vertices: in
         design = msgspec.structs.replace(design, scene=msgspec.structs.replace(design.scene, friction=friction))
     if fine_vertices is not None:
         design = msgspec.structs.replace(
-            design, resolution=msgspec.structs.replace(design.resolution, fine_vertices=int(fine_vertices)))
+            design, resolution=msgspec.structs.replace(design.resolution, fine_vertices=int(fine_vertices))
+        )
     return design
 
 
@@ -132,8 +134,10 @@ def linear_algebra(stats: dict) -> dict[str, Any]:
             out["s_per_factorization"] = float(stats[key]) / int(nf)
             out["s_per_factorization_from"] = f"{key}/factorizations"
     steps = stats.get("steps")
-    for time_key, count_keys in (("solve_s", ("solves", "linear_solves", "steps")),
-                                 ("linear_solve_s", ("linear_solves", "solves", "steps"))):
+    for time_key, count_keys in (
+        ("solve_s", ("solves", "linear_solves", "steps")),
+        ("linear_solve_s", ("linear_solves", "solves", "steps")),
+    ):
         if not isinstance(stats.get(time_key), (int, float)):
             continue
         count_key = next((k for k in count_keys if isinstance(stats.get(k), (int, np.integer)) and stats[k] > 0), None)
@@ -148,8 +152,15 @@ def linear_algebra(stats: dict) -> dict[str, Any]:
     return out
 
 
-def drape_case(design: Any, method: str, *, max_seconds: float = 120.0, levels: tuple[str, ...] = ("coarse", "fine"),
-               progress: bool = False, label: str = "") -> dict[str, Any]:
+def drape_case(
+    design: Any,
+    method: str,
+    *,
+    max_seconds: float = 120.0,
+    levels: tuple[str, ...] = ("coarse", "fine"),
+    progress: bool = False,
+    label: str = "",
+) -> dict[str, Any]:
     """One cascadic drape from placement, as the solver node runs it.
 
     ``max_seconds`` [s] caps each level's solve. Returns per level: vertices,
@@ -178,12 +189,16 @@ def drape_case(design: Any, method: str, *, max_seconds: float = 120.0, levels: 
         ends[run.level] = time.perf_counter()
 
     def on_progress(level: str, it: int, x: np.ndarray, res: float) -> None:
-        print(f"    {label} {level}: iteration {it}, residual {res:.2e}, {time.perf_counter() - t_run:.0f} s",
-              file=sys.stderr, flush=True)
+        print(
+            f"    {label} {level}: iteration {it}, residual {res:.2e}, {time.perf_counter() - t_run:.0f} s",
+            file=sys.stderr,
+            flush=True,
+        )
 
     t_run = time.perf_counter()
-    runs = service.run(levels=levels, on_level=on_level, on_progress=on_progress if progress else None,
-                       progress_period_s=10.0)
+    runs = service.run(
+        levels=levels, on_level=on_level, on_progress=on_progress if progress else None, progress_period_s=10.0
+    )
     out: dict[str, Any] = {"remesh_s": remesh_s, "tolerances": dict(service.tol), "levels": {}}
     for run in runs:
         r = run.result
@@ -191,11 +206,18 @@ def drape_case(design: Any, method: str, *, max_seconds: float = 120.0, levels: 
         start = ends[run.level] - r.wall_time - t_run
         tt = time_to(r.history, TOL)
         out["levels"][run.level] = {
-            "vertices": int(r.x.shape[0]), "residual": float(r.residual), "converged": bool(r.converged),
-            "iterations": int(r.iterations), "wall_time_s": float(r.wall_time),
+            "vertices": int(r.x.shape[0]),
+            "residual": float(r.residual),
+            "converged": bool(r.converged),
+            "iterations": int(r.iterations),
+            "wall_time_s": float(r.wall_time),
             "steps_per_s": r.iterations / r.wall_time if r.wall_time > 0 else None,
-            "time_to_1e-4_s": tt, "starts_at_s": start, "warm_start": run.warm_start, "diagnosis": r.diagnosis,
-            "linear_algebra": linear_algebra(r.stats), "stats": {k: _plain(v) for k, v in r.stats.items()},
+            "time_to_1e-4_s": tt,
+            "starts_at_s": start,
+            "warm_start": run.warm_start,
+            "diagnosis": r.diagnosis,
+            "linear_algebra": linear_algebra(r.stats),
+            "stats": {k: _plain(v) for k, v in r.stats.items()},
             "history": _thin(r.history),
         }
     lv = out["levels"]
@@ -226,8 +248,10 @@ def warm_up(solvers: list[str]) -> dict[str, float]:
 
 # -- size sweep -----------------------------------------------------------------------------------
 
-def sweep_one(fine_vertices: int, method: str, max_seconds: float,
-              design_name: str = "default_skirt") -> dict[str, Any]:
+
+def sweep_one(
+    fine_vertices: int, method: str, max_seconds: float, design_name: str = "default_skirt"
+) -> dict[str, Any]:
     """One size of the sweep, in this process (run it in a fresh one): warm
     up, drape the design at ``fine_vertices``, add this process's peak
     resident memory [MiB]."""
@@ -237,20 +261,40 @@ def sweep_one(fine_vertices: int, method: str, max_seconds: float,
     fine = case["levels"]["fine"]
     # ru_maxrss is in KiB on Linux
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    return {"target": fine_vertices, "vertices": fine["vertices"], "time_to_1e-4_s": case["time_to_tol_s"],
-            "fine_converged": fine["converged"], "fine_residual": fine["residual"],
-            "fine_iterations": fine["iterations"], "fine_steps_per_s": fine["steps_per_s"],
-            "peak_rss_mib": peak, "warmup_s": warm[method], "remesh_s": case["remesh_s"]}
+    return {
+        "target": fine_vertices,
+        "vertices": fine["vertices"],
+        "time_to_1e-4_s": case["time_to_tol_s"],
+        "fine_converged": fine["converged"],
+        "fine_residual": fine["residual"],
+        "fine_iterations": fine["iterations"],
+        "fine_steps_per_s": fine["steps_per_s"],
+        "peak_rss_mib": peak,
+        "warmup_s": warm[method],
+        "remesh_s": case["remesh_s"],
+    }
 
 
-def sweep(sizes: list[int], method: str, max_seconds: float, timeout_s: float,
-          design_name: str = "default_skirt") -> dict[str, Any]:
+def sweep(
+    sizes: list[int], method: str, max_seconds: float, timeout_s: float, design_name: str = "default_skirt"
+) -> dict[str, Any]:
     """Every size in its own process; the time-vs-size exponent by least squares in log-log."""
     rows: list[dict[str, Any]] = []
     for n in sizes:
         print(f"  sweep: {n} fine vertices ({method})...", file=sys.stderr, flush=True)
-        cmd = [sys.executable, "-m", "couture.bench.drape", "--sweep-one", str(n), "--solvers", method,
-               "--max-seconds", str(max_seconds), "--sweep-design", design_name]
+        cmd = [
+            sys.executable,
+            "-m",
+            "couture.bench.drape",
+            "--sweep-one",
+            str(n),
+            "--solvers",
+            method,
+            "--max-seconds",
+            str(max_seconds),
+            "--sweep-design",
+            design_name,
+        ]
         try:
             p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
         except subprocess.TimeoutExpired:
@@ -262,19 +306,31 @@ def sweep(sizes: list[int], method: str, max_seconds: float, timeout_s: float,
         row = json.loads(p.stdout.strip().splitlines()[-1])
         rows.append(row)
         t = row["time_to_1e-4_s"]["total"]
-        print(f"  sweep: {row['vertices']} vertices: {'-' if t is None else f'{t:.2f} s'} to 1e-4, "
-              f"peak {row['peak_rss_mib']:.0f} MiB", file=sys.stderr, flush=True)
-    pts = [(r["vertices"], r["time_to_1e-4_s"]["fine"]) for r in rows
-           if "error" not in r and r["time_to_1e-4_s"]["fine"] is not None and r["time_to_1e-4_s"]["fine"] > 0]
+        print(
+            f"  sweep: {row['vertices']} vertices: {'-' if t is None else f'{t:.2f} s'} to 1e-4, "
+            f"peak {row['peak_rss_mib']:.0f} MiB",
+            file=sys.stderr,
+            flush=True,
+        )
+    pts = [
+        (r["vertices"], r["time_to_1e-4_s"]["fine"])
+        for r in rows
+        if "error" not in r and r["time_to_1e-4_s"]["fine"] is not None and r["time_to_1e-4_s"]["fine"] > 0
+    ]
     fit = None
     if len(pts) >= 2:
         slope, intercept = np.polyfit(np.log([p[0] for p in pts]), np.log([p[1] for p in pts]), 1)
-        fit = {"exponent": float(slope), "coefficient_s": float(math.exp(intercept)),
-               "of": "fine time to 1e-4 [s] = coefficient * vertices^exponent", "points": len(pts)}
+        fit = {
+            "exponent": float(slope),
+            "coefficient_s": float(math.exp(intercept)),
+            "of": "fine time to 1e-4 [s] = coefficient * vertices^exponent",
+            "points": len(pts),
+        }
     return {"solver": method, "design": design_name, "rows": rows, "fit": fit}
 
 
 # -- plots ----------------------------------------------------------------------------------------
+
 
 def _pyplot():
     import matplotlib
@@ -300,8 +356,14 @@ def plot_design(path: Path, name: str, cases: list[dict[str, Any]]) -> None:
                 continue
             h = np.asarray(lv["history"])
             label = f"{case['solver']} {level}" + ("" if case["friction"] else ", frictionless")
-            ax.semilogy(lv["starts_at_s"] + h[:, 0], np.maximum(h[:, 1], 1e-16), style,
-                        color=colours.get(case["solver"]), alpha=1.0 if case["friction"] else 0.5, label=label)
+            ax.semilogy(
+                lv["starts_at_s"] + h[:, 0],
+                np.maximum(h[:, 1], 1e-16),
+                style,
+                color=colours.get(case["solver"]),
+                alpha=1.0 if case["friction"] else 0.5,
+                label=label,
+            )
     ax.axhline(TOL, color="k", lw=0.8, ls="--", label="1e-4")
     ax.set_xlabel("time since the coarse solve started [s]")
     ax.set_ylabel("relative force residual")
@@ -341,6 +403,7 @@ def plot_sweep(path: Path, sw: dict[str, Any]) -> None:
 
 # -- table and command line -----------------------------------------------------------------------
 
+
 def _f(v: float | None, fmt: str) -> str:
     return "-" if v is None else format(v, fmt)
 
@@ -351,7 +414,8 @@ def goals(case: dict[str, Any]) -> dict[str, bool | None]:
     fine_sps = lv.get("fine", {}).get("steps_per_s")
     coarse_sps = lv.get("coarse", {}).get("steps_per_s")
     return {
-        "fine_total_s": None if "fine" not in lv
+        "fine_total_s": None
+        if "fine" not in lv
         else (tt["total"] is not None and tt["total"] <= GOALS["fine_total_s"]),
         "fine_steps_per_s": None if fine_sps is None else fine_sps >= GOALS["fine_steps_per_s"],
         "coarse_steps_per_s": None if coarse_sps is None else coarse_sps >= GOALS["coarse_steps_per_s"],
@@ -359,26 +423,37 @@ def goals(case: dict[str, Any]) -> dict[str, bool | None]:
 
 
 def print_table(cases: list[dict[str, Any]]) -> None:
-    print(f"{'design':15s} {'solver':8s} {'fric':4s} {'level':6s} {'n':>6s} {'residual':>9s} {'conv':>4s} "
-          f"{'its':>5s} {'s':>7s} {'its/s':>6s} {'to 1e-4':>8s} {'facts':>6s} {'s/fact':>7s} {'s/solve':>8s}")
+    print(
+        f"{'design':15s} {'solver':8s} {'fric':4s} {'level':6s} {'n':>6s} {'residual':>9s} {'conv':>4s} "
+        f"{'its':>5s} {'s':>7s} {'its/s':>6s} {'to 1e-4':>8s} {'facts':>6s} {'s/fact':>7s} {'s/solve':>8s}"
+    )
     for c in cases:
         for level, lv in c["levels"].items():
             la = lv["linear_algebra"]
-            print(f"{c['design']:15s} {c['solver']:8s} {'on' if c['friction'] else 'off':4s} {level:6s} "
-                  f"{lv['vertices']:6d} {lv['residual']:9.2e} {'yes' if lv['converged'] else 'NO':>4s} "
-                  f"{lv['iterations']:5d} {lv['wall_time_s']:7.2f} {_f(lv['steps_per_s'], '6.1f')} "
-                  f"{_f(lv['time_to_1e-4_s'], '8.2f')} {la.get('factorizations', '-'):>6} "
-                  f"{_f(la.get('s_per_factorization'), '7.3f')} {_f(la.get('s_per_solve'), '8.4f')}"
-                  + (f"  [{lv['diagnosis']}]" if lv["diagnosis"] else ""))
+            print(
+                f"{c['design']:15s} {c['solver']:8s} {'on' if c['friction'] else 'off':4s} {level:6s} "
+                f"{lv['vertices']:6d} {lv['residual']:9.2e} {'yes' if lv['converged'] else 'NO':>4s} "
+                f"{lv['iterations']:5d} {lv['wall_time_s']:7.2f} {_f(lv['steps_per_s'], '6.1f')} "
+                f"{_f(lv['time_to_1e-4_s'], '8.2f')} {la.get('factorizations', '-'):>6} "
+                f"{_f(la.get('s_per_factorization'), '7.3f')} {_f(la.get('s_per_solve'), '8.4f')}"
+                + (f"  [{lv['diagnosis']}]" if lv["diagnosis"] else "")
+            )
         tt = c["time_to_tol_s"]
         g = c["goals"]
-        print(f"{'':15s} {'':8s} {'':4s} total to 1e-4: {_f(tt['total'], '.2f')} s "
-              f"(goal <= {GOALS['fine_total_s']:g} s: {g['fine_total_s']}; fine >= {GOALS['fine_steps_per_s']:g} "
-              f"its/s: {g['fine_steps_per_s']}; coarse >= {GOALS['coarse_steps_per_s']:g} its/s: "
-              f"{g['coarse_steps_per_s']})")
-    sources = sorted({f"{c['solver']}: s/fact = {lv['linear_algebra'].get('s_per_factorization_from', '-')}, "
-                      f"s/solve = {lv['linear_algebra'].get('s_per_solve_from', '-')}"
-                      for c in cases for lv in c["levels"].values()})
+        print(
+            f"{'':15s} {'':8s} {'':4s} total to 1e-4: {_f(tt['total'], '.2f')} s "
+            f"(goal <= {GOALS['fine_total_s']:g} s: {g['fine_total_s']}; fine >= {GOALS['fine_steps_per_s']:g} "
+            f"its/s: {g['fine_steps_per_s']}; coarse >= {GOALS['coarse_steps_per_s']:g} its/s: "
+            f"{g['coarse_steps_per_s']})"
+        )
+    sources = sorted(
+        {
+            f"{c['solver']}: s/fact = {lv['linear_algebra'].get('s_per_factorization_from', '-')}, "
+            f"s/solve = {lv['linear_algebra'].get('s_per_solve_from', '-')}"
+            for c in cases
+            for lv in c["levels"].values()
+        }
+    )
     for line in sources:
         print(f"  ({line}, from the solver's stats)")
 
@@ -387,27 +462,41 @@ def _commit() -> str | None:
     """The source tree's git commit (with '+dirty' for local changes), None outside a checkout."""
     root = Path(__file__).resolve().parents[2]
     try:
-        head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
-                              timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, timeout=10).stdout.strip()
+        head = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return None
     return head + ("+dirty" if dirty else "")
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="couture bench drape", description=__doc__.split("\n\n")[0],
-                                 epilog="figures: time to 1e-4, residual, iterations, steps/s, factorizations; "
-                                        "JSON and PNGs into --out")
-    ap.add_argument("--designs", nargs="*", default=sorted(p.stem for p in EXAMPLES.glob("*.json")),
-                    help="example names or pattern files (default: every example; none: the sweep only)")
+    ap = argparse.ArgumentParser(
+        prog="couture bench drape",
+        description=__doc__.split("\n\n")[0],
+        epilog="figures: time to 1e-4, residual, iterations, steps/s, factorizations; JSON and PNGs into --out",
+    )
+    ap.add_argument(
+        "--designs",
+        nargs="*",
+        default=sorted(p.stem for p in EXAMPLES.glob("*.json")),
+        help="example names or pattern files (default: every example; none: the sweep only)",
+    )
     ap.add_argument("--solvers", nargs="+", default=["newton", "kinetic"], choices=["newton", "kinetic", "verlet"])
     ap.add_argument("--levels", default="coarse,fine", help="levels to solve, comma separated (coarse first)")
     ap.add_argument("--frictionless", action="store_true", help="also drape every design with friction off")
     ap.add_argument("--max-seconds", type=float, default=120.0, help="[s] cap on each level's solve")
-    ap.add_argument("--sizes", default=",".join(str(s) for s in SWEEP_SIZES),
-                    help="fine-level vertex targets of the default-skirt sweep, comma separated")
+    ap.add_argument(
+        "--sizes",
+        default=",".join(str(s) for s in SWEEP_SIZES),
+        help="fine-level vertex targets of the default-skirt sweep, comma separated",
+    )
     ap.add_argument("--sweep-solver", default="newton", choices=["newton", "kinetic", "verlet"])
     ap.add_argument("--sweep-design", default="default_skirt", help="design of the size sweep")
     ap.add_argument("--no-sweep", action="store_true", help="skip the size sweep")
@@ -438,8 +527,14 @@ def main(argv: list[str] | None = None) -> int:
                 k = len(cases) + 1
                 label = f"[{k}/{total}] {name} {method}" + ("" if friction else " frictionless")
                 print(f"{label}...", file=sys.stderr, flush=True)
-                case = drape_case(with_options(design, friction=friction), method, max_seconds=a.max_seconds,
-                                  levels=levels, progress=True, label=label)
+                case = drape_case(
+                    with_options(design, friction=friction),
+                    method,
+                    max_seconds=a.max_seconds,
+                    levels=levels,
+                    progress=True,
+                    label=label,
+                )
                 case.update(design=name, solver=method, friction=friction)
                 case["goals"] = goals(case)
                 tt = case["time_to_tol_s"]
@@ -463,18 +558,31 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{r['target']:7d} {r['error']}")
                 continue
             tt = r["time_to_1e-4_s"]
-            print(f"{r['target']:7d} {r['vertices']:6d} {_f(tt['fine'], '14.2f')} {_f(tt['total'], '8.2f')} "
-                  f"{r['fine_iterations']:5d} {r['peak_rss_mib']:9.0f}")
+            print(
+                f"{r['target']:7d} {r['vertices']:6d} {_f(tt['fine'], '14.2f')} {_f(tt['total'], '8.2f')} "
+                f"{r['fine_iterations']:5d} {r['peak_rss_mib']:9.0f}"
+            )
         if sw["fit"] is not None:
-            print(f"fine time to 1e-4 ~ n^{sw['fit']['exponent']:.2f} (least squares in log-log, "
-                  f"{sw['fit']['points']} sizes)")
+            print(
+                f"fine time to 1e-4 ~ n^{sw['fit']['exponent']:.2f} (least squares in log-log, "
+                f"{sw['fit']['points']} sizes)"
+            )
 
     report = {
-        "bench": "drape", "tolerance": TOL, "goals": GOALS, "warmup_s": warm,
-        "machine": {"platform": platform.platform(), "python": platform.python_version(), "cpus": os.cpu_count(),
-                    "load_average_at_end": list(os.getloadavg())},
+        "bench": "drape",
+        "tolerance": TOL,
+        "goals": GOALS,
+        "warmup_s": warm,
+        "machine": {
+            "platform": platform.platform(),
+            "python": platform.python_version(),
+            "cpus": os.cpu_count(),
+            "load_average_at_end": list(os.getloadavg()),
+        },
         "commit": _commit(),
-        "args": dict(vars(a), out=str(a.out)), "cases": cases, "sweep": sw,
+        "args": dict(vars(a), out=str(a.out)),
+        "cases": cases,
+        "sweep": sw,
     }
     print(f"wrote {write_results(out_dir, 'drape', report)} and plots in {out_dir}")
     return 0

@@ -69,8 +69,9 @@ def coarse_mesh(kind: str, vertices: int, params: dict | None = None):
     return design, drafted, mesh_pattern(drafted, vertices, level="coarse")
 
 
-def drape(kind: str, vertices: int = 1600, solvers=("newton", "kinetic"), max_seconds: float = 60.0,
-          tol: float = 1e-4) -> tuple[DrapeRow, np.ndarray, object]:
+def drape(
+    kind: str, vertices: int = 1600, solvers=("newton", "kinetic"), max_seconds: float = 60.0, tol: float = 1e-4
+) -> tuple[DrapeRow, np.ndarray, object]:
     """Drape one sloper; returns the best row (lowest residual), its x and the mesh."""
     from couture.cloth.body import load_mannequin_sdf
     from couture.cloth.model import ClothModel, Scene
@@ -90,10 +91,22 @@ def drape(kind: str, vertices: int = 1600, solvers=("newton", "kinetic"), max_se
         out = get_solver(name).solve(model, x0.copy(), tol=tol, max_seconds=max_seconds)
         x = out.x
         phi = sdf.phi_grad(x)[0]
-        row = DrapeRow(kind, name, mesh.n_vertices, float(np.median(g0) * 100), float(g0.max() * 100),
-                       float(seam_gaps(mesh, x).max() * 100), r0, float(out.residual), bool(out.converged),
-                       float(out.wall_time), float(phi0.min() * 1e3), float(phi.min() * 1e3),
-                       float((top0 - x[:, 1].max()) * 100), out.diagnosis)
+        row = DrapeRow(
+            kind,
+            name,
+            mesh.n_vertices,
+            float(np.median(g0) * 100),
+            float(g0.max() * 100),
+            float(seam_gaps(mesh, x).max() * 100),
+            r0,
+            float(out.residual),
+            bool(out.converged),
+            float(out.wall_time),
+            float(phi0.min() * 1e3),
+            float(phi.min() * 1e3),
+            float((top0 - x[:, 1].max()) * 100),
+            out.diagnosis,
+        )
         if best is None or row.residual < best[0].residual:
             best = (row, x)
         if out.converged:
@@ -120,8 +133,12 @@ def render(path: Path, kind: str, mesh, x: np.ndarray, title: str) -> None:
         # y up: plot (x, z, y)
         body = Poly3DCollection(V[F][:, :, [0, 2, 1]], facecolor=(0.8, 0.8, 0.8, 0.25), edgecolor="none")
         ax.add_collection3d(body)
-        cloth = Poly3DCollection(x[mesh.tris][:, :, [0, 2, 1]], facecolor=(0.2, 0.4, 0.85, 0.8),
-                                 edgecolor=(0.1, 0.1, 0.3, 0.3), linewidth=0.2)
+        cloth = Poly3DCollection(
+            x[mesh.tris][:, :, [0, 2, 1]],
+            facecolor=(0.2, 0.4, 0.85, 0.8),
+            edgecolor=(0.1, 0.1, 0.3, 0.3),
+            linewidth=0.2,
+        )
         ax.add_collection3d(cloth)
         ax.set_xlim(-0.5, 0.5)
         ax.set_ylim(-0.5, 0.5)
@@ -150,21 +167,34 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     out = Path(args.out)
     rows = []
-    hdr = (f"{'sloper':9s} {'solver':8s} {'n':>5s} {'gap0 med/max cm':>16s} {'gap cm':>7s} {'res0':>8s} "
-           f"{'residual':>9s} {'s':>6s} {'phi0 mm':>8s} {'phi mm':>7s} {'drop cm':>8s} dressed")
+    hdr = (
+        f"{'sloper':9s} {'solver':8s} {'n':>5s} {'gap0 med/max cm':>16s} {'gap cm':>7s} {'res0':>8s} "
+        f"{'residual':>9s} {'s':>6s} {'phi0 mm':>8s} {'phi mm':>7s} {'drop cm':>8s} dressed"
+    )
     print(hdr)
     for kind in args.slopers:
         row, x, mesh = drape(kind, args.vertices, args.solvers, args.max_seconds, args.tol)
         rows.append(row)
-        print(f"{row.sloper:9s} {row.solver:8s} {row.vertices:5d} {row.gap0_median_cm:7.1f}/{row.gap0_max_cm:<8.1f} "
-              f"{row.gap_max_cm:7.2f} {row.residual0:8.1e} {row.residual:9.1e} {row.seconds:6.1f} "
-              f"{row.min_phi0_mm:8.1f} {row.min_phi_mm:7.1f} {row.top_drop_cm:8.1f} {row.dressed}"
-              + (f"  ({row.diagnosis})" if row.diagnosis else ""), flush=True)
+        print(
+            f"{row.sloper:9s} {row.solver:8s} {row.vertices:5d} {row.gap0_median_cm:7.1f}/{row.gap0_max_cm:<8.1f} "
+            f"{row.gap_max_cm:7.2f} {row.residual0:8.1e} {row.residual:9.1e} {row.seconds:6.1f} "
+            f"{row.min_phi0_mm:8.1f} {row.min_phi_mm:7.1f} {row.top_drop_cm:8.1f} {row.dressed}"
+            + (f"  ({row.diagnosis})" if row.diagnosis else ""),
+            flush=True,
+        )
         if not args.no_png:
-            render(out / "drapes" / f"{kind}.png", kind, mesh, x,
-                   f"{kind}: {row.solver}, residual {row.residual:.1e}, {row.seconds:.0f} s")
-    write_results(out, "drape_slopers", {"rows": [dict(asdict(r), dressed=r.dressed) for r in rows],
-                                         "args": dict(vars(args), out=str(args.out))})
+            render(
+                out / "drapes" / f"{kind}.png",
+                kind,
+                mesh,
+                x,
+                f"{kind}: {row.solver}, residual {row.residual:.1e}, {row.seconds:.0f} s",
+            )
+    write_results(
+        out,
+        "drape_slopers",
+        {"rows": [dict(asdict(r), dressed=r.dressed) for r in rows], "args": dict(vars(args), out=str(args.out))},
+    )
     return 0
 
 

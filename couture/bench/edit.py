@@ -55,16 +55,22 @@ def _wait_counter(client: Client, counter: str, timeout: float, poll: float) -> 
 def run(fine_vertices: int, drags: int, hz: float, solver: str = "newton", timeout: float = 300.0) -> dict:
     nodes = supervisor.default_nodes(solvers=[solver], ui=False)
     cfg = supervisor.SupervisorConfig(
-        bus=BusConfig(session=f"e2e{uuid.uuid4().hex[:6]}", listen=[f"tcp/127.0.0.1:{free_port()}"]), nodes=nodes)
-    design = Design(sloper=Sloper(kind="skirt"),
-                    resolution=Resolution(coarse_vertices=min(1600, fine_vertices // 2), fine_vertices=fine_vertices))
+        bus=BusConfig(session=f"e2e{uuid.uuid4().hex[:6]}", listen=[f"tcp/127.0.0.1:{free_port()}"]), nodes=nodes
+    )
+    design = Design(
+        sloper=Sloper(kind="skirt"),
+        resolution=Resolution(coarse_vertices=min(1600, fine_vertices // 2), fine_vertices=fine_vertices),
+    )
     with supervisor.Supervisor(cfg) as sup, Client(bus=sup.child_bus) as client:
         client.wait_nodes(["remesher", f"solver-{solver}", "sensitivity"], timeout=90)
         gen = client.publish_pattern(design, name="e2e")
         t0 = time.monotonic()
         drape = client.wait_drape("fine", generation=gen, timeout=timeout, final=True)
-        print(f"[e2e] {fine_vertices}: first fine drape after {time.monotonic() - t0:.1f} s "
-              f"(residual {drape.residual:.2e})", file=sys.stderr)
+        print(
+            f"[e2e] {fine_vertices}: first fine drape after {time.monotonic() - t0:.1f} s "
+            f"(residual {drape.residual:.2e})",
+            file=sys.stderr,
+        )
         # the sensitivity node refactors at that drape in idle time
         _wait_counter(client, "refactors", timeout=120, poll=0.2)
         recv: dict[float, int] = {}
@@ -95,7 +101,10 @@ def run(fine_vertices: int, drags: int, hz: float, solver: str = "newton", timeo
         mesh = client.latest_mesh("fine")
     return {
         "fine_vertices": int(mesh.X.shape[0]) if mesh is not None else fine_vertices,
-        "drags": drags, "hz": hz, "answered": int(len(lat)), "coalesced": int(drags - len(lat)),
+        "drags": drags,
+        "hz": hz,
+        "answered": int(len(lat)),
+        "coalesced": int(drags - len(lat)),
         "p50_ms": float(np.median(lat)) if len(lat) else None,
         "p90_ms": float(np.percentile(lat, 90)) if len(lat) else None,
         "p99_ms": float(np.percentile(lat, 99)) if len(lat) else None,
@@ -109,19 +118,25 @@ LENGTH_STEP_M = 0.02
 """[m] each change lengthens the skirt by this much, or takes it back"""
 
 
-def run_pattern_changes(changes: int, solver: str = "kinetic", timeout: float = 300.0,
-                        fine_vertices: int | None = None) -> dict:
+def run_pattern_changes(
+    changes: int, solver: str = "kinetic", timeout: float = 300.0, fine_vertices: int | None = None
+) -> dict:
     """Latency of pattern changes on the live nodes, measured from the bus (see the module docstring).
 
     ``fine_vertices`` overrides the default skirt's fine level (None: as
     shipped); ``timeout`` [s] bounds each wait for a final fine drape."""
     nodes = supervisor.default_nodes(solvers=[solver], ui=False)
     cfg = supervisor.SupervisorConfig(
-        bus=BusConfig(session=f"pat{uuid.uuid4().hex[:6]}", listen=[f"tcp/127.0.0.1:{free_port()}"]), nodes=nodes)
+        bus=BusConfig(session=f"pat{uuid.uuid4().hex[:6]}", listen=[f"tcp/127.0.0.1:{free_port()}"]), nodes=nodes
+    )
     design = Design(sloper=Sloper(kind="skirt"))
     if fine_vertices is not None:
-        design = msgspec.structs.replace(design, resolution=msgspec.structs.replace(
-            design.resolution, fine_vertices=fine_vertices, coarse_vertices=min(1600, fine_vertices // 2)))
+        design = msgspec.structs.replace(
+            design,
+            resolution=msgspec.structs.replace(
+                design.resolution, fine_vertices=fine_vertices, coarse_vertices=min(1600, fine_vertices // 2)
+            ),
+        )
     from couture.pattern.slopers import SLOPERS
 
     length0 = next(o.default for o in SLOPERS["skirt"].options if o.name == "length")
@@ -141,8 +156,12 @@ def run_pattern_changes(changes: int, solver: str = "kinetic", timeout: float = 
         gen = client.publish_pattern(design, name="pattern-latency")
         t0 = time.perf_counter()
         first = client.follow_drape(gen, timeout=timeout)
-        print(f"[pattern] first drape: fine final after {time.perf_counter() - t0:.1f} s, residual "
-              f"{first.residual:.2e}, converged {first.converged}", file=sys.stderr, flush=True)
+        print(
+            f"[pattern] first drape: fine final after {time.perf_counter() - t0:.1f} s, residual "
+            f"{first.residual:.2e}, converged {first.converged}",
+            file=sys.stderr,
+            flush=True,
+        )
         for k in range(1, changes + 1):
             time.sleep(1.0)  # a designer looks before the next move; the sensitivity node refactors meanwhile
             length = length0 + (LENGTH_STEP_M if k % 2 else 0.0)
@@ -157,53 +176,86 @@ def run_pattern_changes(changes: int, solver: str = "kinetic", timeout: float = 
             with lock:
                 coarse = arrivals.get((gen, "coarse"))
                 t_fine = arrivals.get((gen, "fine"), (time.perf_counter(), fine))[0]
-            row = {"change": k, "generation": gen, "length_m": length,
-                   "coarse_s": None if coarse is None else coarse[0] - t_pub,
-                   "coarse_residual": None if coarse is None else coarse[1].residual,
-                   "fine_s": t_fine - t_pub, "fine_converged": fine.converged, "fine_residual": fine.residual,
-                   "fine_iterations": fine.iterations, "fine_diagnosis": fine.diagnosis}
+            row = {
+                "change": k,
+                "generation": gen,
+                "length_m": length,
+                "coarse_s": None if coarse is None else coarse[0] - t_pub,
+                "coarse_residual": None if coarse is None else coarse[1].residual,
+                "fine_s": t_fine - t_pub,
+                "fine_converged": fine.converged,
+                "fine_residual": fine.residual,
+                "fine_iterations": fine.iterations,
+                "fine_diagnosis": fine.diagnosis,
+            }
             rows.append(row)
             coarse_txt = "-" if row["coarse_s"] is None else f"{row['coarse_s']:.2f}"
-            print(f"[pattern] change {k}: coarse {coarse_txt} s, "
-                  f"fine {row['fine_s']:.2f} s (residual {fine.residual:.2e}, converged {fine.converged})",
-                  file=sys.stderr, flush=True)
+            print(
+                f"[pattern] change {k}: coarse {coarse_txt} s, "
+                f"fine {row['fine_s']:.2f} s (residual {fine.residual:.2e}, converged {fine.converged})",
+                file=sys.stderr,
+                flush=True,
+            )
         mesh = client.latest_mesh("fine")
     ok = [r for r in rows if "error" not in r]
     coarse_t = [r["coarse_s"] for r in ok if r["coarse_s"] is not None]
     fine_t = [r["fine_s"] for r in ok if r["fine_converged"]]
-    med = {"coarse_s": float(np.median(coarse_t)) if coarse_t else None,
-           "converged_fine_s": float(np.median(fine_t)) if fine_t else None}
+    med = {
+        "coarse_s": float(np.median(coarse_t)) if coarse_t else None,
+        "converged_fine_s": float(np.median(fine_t)) if fine_t else None,
+    }
     goal = {
-        "coarse_s": PATTERN_GOALS_S["coarse"], "fine_s": PATTERN_GOALS_S["fine"],
+        "coarse_s": PATTERN_GOALS_S["coarse"],
+        "fine_s": PATTERN_GOALS_S["fine"],
         "coarse_met": med["coarse_s"] is not None and med["coarse_s"] <= PATTERN_GOALS_S["coarse"],
         # every change must converge for the fine goal to count as met
-        "fine_met": (med["converged_fine_s"] is not None and len(fine_t) == len(rows)
-                     and med["converged_fine_s"] <= PATTERN_GOALS_S["fine"]),
+        "fine_met": (
+            med["converged_fine_s"] is not None
+            and len(fine_t) == len(rows)
+            and med["converged_fine_s"] <= PATTERN_GOALS_S["fine"]
+        ),
     }
-    return {"solver": solver, "fine_vertices": int(mesh.X.shape[0]) if mesh is not None else None,
-            "changes": rows, "median": med, "converged_changes": len(fine_t), "goal": goal}
+    return {
+        "solver": solver,
+        "fine_vertices": int(mesh.X.shape[0]) if mesh is not None else None,
+        "changes": rows,
+        "median": med,
+        "converged_changes": len(fine_t),
+        "goal": goal,
+    }
 
 
 def main_pattern(a: argparse.Namespace) -> int:
-    res = run_pattern_changes(a.changes, solver=a.solver or "kinetic", timeout=a.timeout,
-                              fine_vertices=a.fine_vertices)
+    res = run_pattern_changes(a.changes, solver=a.solver or "kinetic", timeout=a.timeout, fine_vertices=a.fine_vertices)
     med, goal = res["median"], res["goal"]
     print(f"{'change':>6} {'coarse s':>9} {'fine s':>8} {'converged':>9} {'residual':>9}")
     for r in res["changes"]:
         if "error" in r:
             print(f"{r['change']:>6} {r['error']}")
             continue
-        print(f"{r['change']:>6} {r['coarse_s'] if r['coarse_s'] is not None else float('nan'):9.2f} "
-              f"{r['fine_s']:8.2f} {str(r['fine_converged']):>9} {r['fine_residual']:9.2e}")
+        print(
+            f"{r['change']:>6} {r['coarse_s'] if r['coarse_s'] is not None else float('nan'):9.2f} "
+            f"{r['fine_s']:8.2f} {str(r['fine_converged']):>9} {r['fine_residual']:9.2e}"
+        )
+
     def s(v: float | None) -> str:
         return "-" if v is None else f"{v:.2f}"
 
-    print(f"goal: pattern change -> coarse drape <= {goal['coarse_s']:g} s (median {s(med['coarse_s'])} s): "
-          f"{'met' if goal['coarse_met'] else 'NOT met'}; -> converged fine drape <= {goal['fine_s']:g} s "
-          f"(median {s(med['converged_fine_s'])} s, {res['converged_changes']}/{len(res['changes'])} converged): "
-          f"{'met' if goal['fine_met'] else 'NOT met'}")
-    out = {"bench": "edit_pattern", "machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
-                                                "load_average_at_end": list(os.getloadavg())}, **res}
+    print(
+        f"goal: pattern change -> coarse drape <= {goal['coarse_s']:g} s (median {s(med['coarse_s'])} s): "
+        f"{'met' if goal['coarse_met'] else 'NOT met'}; -> converged fine drape <= {goal['fine_s']:g} s "
+        f"(median {s(med['converged_fine_s'])} s, {res['converged_changes']}/{len(res['changes'])} converged): "
+        f"{'met' if goal['fine_met'] else 'NOT met'}"
+    )
+    out = {
+        "bench": "edit_pattern",
+        "machine": {
+            "platform": platform.platform(),
+            "cpus": os.cpu_count(),
+            "load_average_at_end": list(os.getloadavg()),
+        },
+        **res,
+    }
     print(f"wrote {write_results(a.out, 'edit_pattern', out)}")
     return 0
 
@@ -214,30 +266,52 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--drags", type=int, default=180)
     ap.add_argument("--hz", type=float, default=60.0)
     add_out_arg(ap)
-    ap.add_argument("--case", choices=["drag", "pattern"], default="drag",
-                    help="drag: edit -> prediction latency; pattern: pattern change -> coarse and fine drape "
-                         "(writes edit_pattern.json in the --out folder)")
+    ap.add_argument(
+        "--case",
+        choices=["drag", "pattern"],
+        default="drag",
+        help="drag: edit -> prediction latency; pattern: pattern change -> coarse and fine drape "
+        "(writes edit_pattern.json in the --out folder)",
+    )
     ap.add_argument("--changes", type=int, default=5, help="pattern case: number of pattern changes")
-    ap.add_argument("--solver", default=None, help="solver node (default: newton for drag, kinetic, as "
-                                                   "`couture up` runs, for pattern)")
+    ap.add_argument(
+        "--solver",
+        default=None,
+        help="solver node (default: newton for drag, kinetic, as `couture up` runs, for pattern)",
+    )
     ap.add_argument("--timeout", type=float, default=300.0, help="[s] pattern case: wait per fine drape")
-    ap.add_argument("--fine-vertices", type=int, default=None,
-                    help="pattern case: the skirt's fine-level vertex target (default: as shipped)")
+    ap.add_argument(
+        "--fine-vertices",
+        type=int,
+        default=None,
+        help="pattern case: the skirt's fine-level vertex target (default: as shipped)",
+    )
     a = ap.parse_args(argv)
     if a.case == "pattern":
         return main_pattern(a)
     rows = [run(int(s), a.drags, a.hz, solver=a.solver or "newton") for s in a.sizes.split(",")]
     print(f"{'vertices':>9} {'answered':>9} {'coalesced':>9} {'p50 ms':>8} {'p90 ms':>8} {'p99 ms':>8}")
     for r in rows:
-        print(f"{r['fine_vertices']:>9} {r['answered']:>9} {r['coalesced']:>9} {r['p50_ms'] or float('nan'):8.2f} "
-              f"{r['p90_ms'] or float('nan'):8.2f} {r['p99_ms'] or float('nan'):8.2f}")
+        print(
+            f"{r['fine_vertices']:>9} {r['answered']:>9} {r['coalesced']:>9} {r['p50_ms'] or float('nan'):8.2f} "
+            f"{r['p90_ms'] or float('nan'):8.2f} {r['p99_ms'] or float('nan'):8.2f}"
+        )
     big = max(rows, key=lambda r: r["fine_vertices"])
     goal = {"p50_ms": 16.0, "measured": big["p50_ms"], "met": big["p50_ms"] is not None and big["p50_ms"] <= 16.0}
-    print(f"goal: edit-to-prediction p50 <= 16 ms at {big['fine_vertices']} vertices: "
-          f"{big['p50_ms']} ms -> {'met' if goal['met'] else 'NOT met'}")
-    out = {"bench": "edit", "machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
-                                        "load_average_at_end": list(os.getloadavg())},
-           "rows": rows, "goal": goal}
+    print(
+        f"goal: edit-to-prediction p50 <= 16 ms at {big['fine_vertices']} vertices: "
+        f"{big['p50_ms']} ms -> {'met' if goal['met'] else 'NOT met'}"
+    )
+    out = {
+        "bench": "edit",
+        "machine": {
+            "platform": platform.platform(),
+            "cpus": os.cpu_count(),
+            "load_average_at_end": list(os.getloadavg()),
+        },
+        "rows": rows,
+        "goal": goal,
+    }
     print(f"wrote {write_results(a.out, 'edit', out)}")
     return 0
 

@@ -68,16 +68,24 @@ def bench_pattern(drafted, target: int, repeats: int) -> dict:
     w = np.clip(1 - np.linalg.norm(p0.outline - c, axis=1) / 0.15, 0, 1)
     local = {p0.name: PanelJacobian(w[:, None, None] * np.eye(2), [np.zeros((len(h), 2, 2)) for h in p0.holes])}
     # edit 2: a global sloper-parameter change (every vertex of every panel moves)
-    glob = {p.name: PanelJacobian(np.repeat(np.diag([1.0, 0.5])[None], len(p.outline), 0),
-                                  [np.repeat(np.diag([1.0, 0.5])[None], len(h), 0) for h in p.holes])
-            for p in drafted.panels}
+    glob = {
+        p.name: PanelJacobian(
+            np.repeat(np.diag([1.0, 0.5])[None], len(p.outline), 0),
+            [np.repeat(np.diag([1.0, 0.5])[None], len(h), 0) for h in p.holes],
+        )
+        for p in drafted.panels
+    }
     psi(coords, glob)
     psi_local_ms = _median_ms(lambda: psi(coords, local), repeats)
     psi_global_ms = _median_ms(lambda: psi(coords, glob), repeats)
     # flip pass after a 30 % horizontal stretch of the whole pattern through Ψ
-    stretch = {p.name: PanelJacobian(np.array([[[x[0], 0], [0, 0]] for x in p.outline]),
-                                     [np.array([[[x[0], 0], [0, 0]] for x in h]) for h in p.holes])
-               for p in drafted.panels}
+    stretch = {
+        p.name: PanelJacobian(
+            np.array([[[x[0], 0], [0, 0]] for x in p.outline]),
+            [np.array([[[x[0], 0], [0, 0]] for x in h]) for h in p.holes],
+        )
+        for p in drafted.panels
+    }
     Xs = r.mesh.X + psi(coords, stretch) @ np.array([0.3, 0.0])
     flip_to_delaunay(Xs, r.mesh.tris)
     flip_ms = _median_ms(lambda: flip_to_delaunay(Xs, r.mesh.tris), repeats)
@@ -110,13 +118,17 @@ def main(argv: list[str] | None = None) -> int:
     print(hdr)
     print("-" * len(hdr))
     for name, r in rows.items():
-        print(f"{name:10s} {r['vertices']:6d} {r['remesh_ms']:8.1f} {r['pmvc_precompute_ms']:9.1f} "
-              f"{r['psi_local_ms']:8.2f} {r['psi_global_ms']:9.2f} {r['flip_ms']:7.2f}")
+        print(
+            f"{name:10s} {r['vertices']:6d} {r['remesh_ms']:8.1f} {r['pmvc_precompute_ms']:9.1f} "
+            f"{r['psi_local_ms']:8.2f} {r['psi_global_ms']:9.2f} {r['flip_ms']:7.2f}"
+        )
     worst_remesh = max(r["remesh_ms"] for r in rows.values())
     worst_psi = max(r["psi_global_ms"] for r in rows.values())
-    print(f"goals: remesh <= {GOAL_REMESH_MS:.0f} ms (worst {worst_remesh:.1f}: "
-          f"{'met' if worst_remesh <= GOAL_REMESH_MS else 'MISSED'}), "
-          f"Ψ <= {GOAL_PSI_MS:.0f} ms (worst {worst_psi:.2f}: {'met' if worst_psi <= GOAL_PSI_MS else 'MISSED'})")
+    print(
+        f"goals: remesh <= {GOAL_REMESH_MS:.0f} ms (worst {worst_remesh:.1f}: "
+        f"{'met' if worst_remesh <= GOAL_REMESH_MS else 'MISSED'}), "
+        f"Ψ <= {GOAL_PSI_MS:.0f} ms (worst {worst_psi:.2f}: {'met' if worst_psi <= GOAL_PSI_MS else 'MISSED'})"
+    )
     import os
 
     result = {

@@ -141,10 +141,20 @@ def bench_size(nx: int, ny: int, solve_seconds: float, repeats: int, log=print) 
 
 
 COLUMNS = [
-    ("vertices", "{:d}"), ("drape_residual", "{:.1e}"), ("backend", "{}"), ("refactor_ms", "{:.1f}"), ("press_ms", "{:.1f}"),
-    ("press_dforces_dX_ms", "{:.1f}"), ("press_backsub_ms", "{:.1f}"), ("linear_ms", "{:.3f}"),
-    ("gmls_ms", "{:.3f}"), ("mls_ms", "{:.3f}"), ("gmls_weights_ms", "{:.4f}"), ("error_estimate_ms", "{:.2f}"),
-    ("rest_update_ms", "{:.2f}"), ("cache_bytes_per_sample", "{:d}"),
+    ("vertices", "{:d}"),
+    ("drape_residual", "{:.1e}"),
+    ("backend", "{}"),
+    ("refactor_ms", "{:.1f}"),
+    ("press_ms", "{:.1f}"),
+    ("press_dforces_dX_ms", "{:.1f}"),
+    ("press_backsub_ms", "{:.1f}"),
+    ("linear_ms", "{:.3f}"),
+    ("gmls_ms", "{:.3f}"),
+    ("mls_ms", "{:.3f}"),
+    ("gmls_weights_ms", "{:.4f}"),
+    ("error_estimate_ms", "{:.2f}"),
+    ("rest_update_ms", "{:.2f}"),
+    ("cache_bytes_per_sample", "{:d}"),
 ]
 
 
@@ -159,7 +169,9 @@ def table(rows: list[dict]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="couture bench sensitivity", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--sizes", default="63x20,156x50", help="strip grid sizes nx x ny (63x20 ≈ 1.6k, 156x50 ≈ 10k vertices)")
+    ap.add_argument(
+        "--sizes", default="63x20,156x50", help="strip grid sizes nx x ny (63x20 ≈ 1.6k, 156x50 ≈ 10k vertices)"
+    )
     ap.add_argument("--solve-seconds", type=float, default=90.0, help="cap on each drape solve [s]")
     ap.add_argument("--repeats", type=int, default=7)
     add_out_arg(ap)
@@ -170,14 +182,20 @@ def main(argv: list[str] | None = None) -> int:
     big = max(rows, key=lambda r: r["vertices"])
     verdict = {k: {"goal_ms": g, "measured_ms": big[k], "met": big[k] <= g} for k, g in GOALS.items()}
     for k, v in verdict.items():
-        print(f"goal at {big['vertices']} vertices: {k} <= {v['goal_ms']} ms: measured {v['measured_ms']:.3f} ms"
-              f" -> {'met' if v['met'] else 'NOT met'}")
+        print(
+            f"goal at {big['vertices']} vertices: {k} <= {v['goal_ms']} ms: measured {v['measured_ms']:.3f} ms"
+            f" -> {'met' if v['met'] else 'NOT met'}"
+        )
     out = {
         "bench": "sensitivity",
         "scene": "SC Fig. 5 strip (0.8 m x 0.25 m) pinned at one end, draped over a frictionless sphere (r = 0.2 m)",
-        "machine": {"platform": platform.platform(), "cpus": os.cpu_count(), "python": platform.python_version(),
-                    "load_average_at_end": list(os.getloadavg()),
-                    "note": "shared machine: ms-scale timings vary 2-3x with the load of other processes"},
+        "machine": {
+            "platform": platform.platform(),
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+            "load_average_at_end": list(os.getloadavg()),
+            "note": "shared machine: ms-scale timings vary 2-3x with the load of other processes",
+        },
         "rows": rows,
         "goals": verdict,
     }

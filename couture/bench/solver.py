@@ -68,12 +68,21 @@ def _rss_mb():
 def _row(solver_name, level, model, res, rss0, extra=None):
     steps = max(res.iterations, 1)
     row = {
-        "solver": solver_name, "level": level, "n_vertices": model.n, "converged": res.converged,
-        "residual": res.residual, "diagnosis": res.diagnosis, "iterations": res.iterations, "wall_s": res.wall_time,
+        "solver": solver_name,
+        "level": level,
+        "n_vertices": model.n,
+        "converged": res.converged,
+        "residual": res.residual,
+        "diagnosis": res.diagnosis,
+        "iterations": res.iterations,
+        "wall_s": res.wall_time,
         "time_to_1e-3_s": _time_to(res.history, 1e-3),
-        "time_to_1e-4_s": _time_to(res.history, 1e-4), "time_to_1e-6_s": _time_to(res.history, 1e-6),
-        "step_ms": 1e3 * res.wall_time / steps, "steps_per_s": steps / res.wall_time if res.wall_time else None,
-        "assembly_s": res.stats.get("assembly_s"), "linear_solve_s": res.stats.get("linear_solve_s"),
+        "time_to_1e-4_s": _time_to(res.history, 1e-4),
+        "time_to_1e-6_s": _time_to(res.history, 1e-6),
+        "step_ms": 1e3 * res.wall_time / steps,
+        "steps_per_s": steps / res.wall_time if res.wall_time else None,
+        "assembly_s": res.stats.get("assembly_s"),
+        "linear_solve_s": res.stats.get("linear_solve_s"),
         "friction_s": res.stats.get("friction_s"),
         "peak_rss_growth_mb": _rss_mb() - rss0,
         "stats": {k: v for k, v in res.stats.items() if isinstance(v, (int, float, str))},
@@ -117,8 +126,11 @@ def run_cascadic(solver_name, design, meshes, prol, *, max_seconds):
     prolongated coarse drape to 1e-4 (SolveService.run)."""
     from couture.solvers.service import SolveService
 
-    svc = SolveService(method=solver_name, tol={"coarse": 1e-3, "fine": 1e-4},
-                       max_seconds={"coarse": max_seconds / 3, "fine": 2 * max_seconds / 3})
+    svc = SolveService(
+        method=solver_name,
+        tol={"coarse": 1e-3, "fine": 1e-4},
+        max_seconds={"coarse": max_seconds / 3, "fine": 2 * max_seconds / 3},
+    )
     svc.set_design(design)
     svc.set_mesh("coarse", meshes["coarse"], 1)
     svc.set_mesh("fine", meshes["fine"], 1, prolongation=prol)
@@ -128,8 +140,16 @@ def run_cascadic(solver_name, design, meshes, prol, *, max_seconds):
     total = time.perf_counter() - t0
     rows = []
     for run in runs:
-        rows.append(_row(solver_name, f"cascadic-{run.level}", svc.levels[run.level].model, run.result, rss0,
-                         {"warm_start": run.warm_start, "cascadic_total_s": total}))
+        rows.append(
+            _row(
+                solver_name,
+                f"cascadic-{run.level}",
+                svc.levels[run.level].model,
+                run.result,
+                rss0,
+                {"warm_start": run.warm_start, "cascadic_total_s": total},
+            )
+        )
     return rows
 
 
@@ -203,14 +223,26 @@ def main(argv=None) -> int:
     compile_t = numba_compile_times()
     t = time.perf_counter()
     makers, meshes, prol, design = skirt_models(levels=tuple(levels) + (() if args.quick else ("coarse", "fine")))
-    print(f"meshed the default skirt in {time.perf_counter() - t:.1f} s: "
-          + ", ".join(f"{k} {m.n_vertices} vertices" for k, m in meshes.items()), file=sys.stderr, flush=True)
+    print(
+        f"meshed the default skirt in {time.perf_counter() - t:.1f} s: "
+        + ", ".join(f"{k} {m.n_vertices} vertices" for k, m in meshes.items()),
+        file=sys.stderr,
+        flush=True,
+    )
     rows = []
     for level in levels:
         for name in solvers:
             print(f"  {name} {level} ...", file=sys.stderr, flush=True)
-            rows.append(run_case(name, makers[level], level, tol=1e-6,
-                                 max_seconds=cap if level == "coarse" else 2 * cap, progress=True))
+            rows.append(
+                run_case(
+                    name,
+                    makers[level],
+                    level,
+                    tol=1e-6,
+                    max_seconds=cap if level == "coarse" else 2 * cap,
+                    progress=True,
+                )
+            )
     if not args.quick and not args.no_cascadic and prol is not None:
         for name in solvers:
             if name not in ("kinetic", "newton"):
@@ -218,23 +250,41 @@ def main(argv=None) -> int:
             print(f"  {name} cascadic ...", file=sys.stderr, flush=True)
             rows.extend(run_cascadic(name, design, meshes, prol, max_seconds=3 * cap))
 
-    hdr = (f"{'solver':8} {'level':16} {'n':>6} {'conv':>5} {'resid':>9} {'steps':>6} {'t1e-4':>7} {'t1e-6':>7} "
-           f"{'step ms':>8} {'steps/s':>8} {'asm s':>6} {'lin s':>6} {'RSS+MB':>7}")
+    hdr = (
+        f"{'solver':8} {'level':16} {'n':>6} {'conv':>5} {'resid':>9} {'steps':>6} {'t1e-4':>7} {'t1e-6':>7} "
+        f"{'step ms':>8} {'steps/s':>8} {'asm s':>6} {'lin s':>6} {'RSS+MB':>7}"
+    )
     print(hdr)
     fmt = lambda v: "   -   " if v is None else f"{v:7.2f}"  # noqa: E731
     for r in rows:
-        print(f"{r['solver']:8} {r['level']:16} {r['n_vertices']:6d} {str(r['converged']):>5} {r['residual']:9.2e} "
-              f"{r['iterations']:6d} {fmt(r['time_to_1e-4_s'])} {fmt(r['time_to_1e-6_s'])} {r['step_ms']:8.1f} "
-              f"{r['steps_per_s'] or 0:8.1f} {r['assembly_s'] or 0:6.2f} {r['linear_solve_s'] or 0:6.2f} "
-              f"{r['peak_rss_growth_mb']:7.1f}")
+        print(
+            f"{r['solver']:8} {r['level']:16} {r['n_vertices']:6d} {str(r['converged']):>5} {r['residual']:9.2e} "
+            f"{r['iterations']:6d} {fmt(r['time_to_1e-4_s'])} {fmt(r['time_to_1e-6_s'])} {r['step_ms']:8.1f} "
+            f"{r['steps_per_s'] or 0:8.1f} {r['assembly_s'] or 0:6.2f} {r['linear_solve_s'] or 0:6.2f} "
+            f"{r['peak_rss_growth_mb']:7.1f}"
+        )
     for r in rows:
         if r["diagnosis"]:
             print(f"  {r['solver']} {r['level']}: {r['diagnosis']}")
-    print("numba first call vs warm [s]:", {k: (round(v["first_s"], 2), round(v["warm_s"], 3)) for k, v in compile_t.items()})
+    print(
+        "numba first call vs warm [s]:",
+        {k: (round(v["first_s"], 2), round(v["warm_s"], 3)) for k, v in compile_t.items()},
+    )
     print("goals:", GOALS)
-    out = write_results(args.out, "solver", {"scene": "default skirt (Design()), friction on", "goals": GOALS,
-                                             "backends": available_backends(), "numba": compile_t, "runs": rows,
-                                             "quick": args.quick, "cap_s": cap}, default=float)
+    out = write_results(
+        args.out,
+        "solver",
+        {
+            "scene": "default skirt (Design()), friction on",
+            "goals": GOALS,
+            "backends": available_backends(),
+            "numba": compile_t,
+            "runs": rows,
+            "quick": args.quick,
+            "cap_s": cap,
+        },
+        default=float,
+    )
     png = Path(args.out) / "solver_convergence.png"
     plot(rows, png)
     print(f"wrote {out} and {png}")

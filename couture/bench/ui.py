@@ -115,8 +115,13 @@ def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, 
                 k = 0
                 while time.time() * 1000 - t0 < seconds * 1000:
                     off = 0.02 * np.array([np.sin(0.2 * k), 0.0, np.cos(0.2 * k)])
-                    ui.show_drape(tugged(x0, 0, off), "predicted", "bench", error_estimate=0.0,
-                                  tag={"t": time.time() * 1000, "k": k})
+                    ui.show_drape(
+                        tugged(x0, 0, off),
+                        "predicted",
+                        "bench",
+                        error_estimate=0.0,
+                        tag={"t": time.time() * 1000, "k": k},
+                    )
                     k += 1
                     time.sleep(1.0 / offer_hz)  # the browser runs on its own; no need to pump playwright here
                 t1 = time.time() * 1000
@@ -124,8 +129,11 @@ def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, 
                 frames = page.evaluate("() => window.__couture.frames")
                 stream = _stats(frames, t0, t1)
                 _log(f"{field} stream: {stream}")
-                stream.update(offered=k, pushed_by_server=ui.frames_pushed - pushed0,
-                              pushed_per_s=round((ui.frames_pushed - pushed0) / ((t1 - t0) / 1000), 2))
+                stream.update(
+                    offered=k,
+                    pushed_by_server=ui.frames_pushed - pushed0,
+                    pushed_per_s=round((ui.frames_pushed - pushed0) / ((t1 - t0) / 1000), 2),
+                )
                 # -- drag on the drape
                 cam = CameraState.from_viser(client.camera)
                 front = np.flatnonzero(np.abs(mesh.X[:, 1] - 0.25) < 0.03)
@@ -137,8 +145,13 @@ def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, 
                     t = time.time() * 1000
                     edits.append(e)
                     dx = np.array([e.d[0], -e.d[1], 0.0]) * 0.001
-                    ui.show_drape(tugged(x0, e.pick.vertex if e.pick else v, dx), "predicted", "bench",
-                                  error_estimate=0.0, tag={"t": t, "phase": e.phase})
+                    ui.show_drape(
+                        tugged(x0, e.pick.vertex if e.pick else v, dx),
+                        "predicted",
+                        "bench",
+                        error_estimate=0.0,
+                        tag={"t": t, "phase": e.phase},
+                    )
 
                 ui.on_edit = on_edit
                 page.evaluate("() => { window.__couture.frames = []; }")
@@ -165,8 +178,9 @@ def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, 
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="couture bench ui", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        prog="couture bench ui", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--vertices", type=int, default=10000)
     ap.add_argument("--seconds", type=float, default=5.0)
     ap.add_argument("--offer-hz", type=float, default=120.0)

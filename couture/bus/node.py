@@ -166,8 +166,13 @@ class Node:
     def status(self) -> StatusMsg:
         st = self.bus.stats
         return StatusMsg(
-            node=self.name, kind=self.kind, pid=os.getpid(), state=self.state,
-            uptime_s=time.monotonic() - self._t0, rates=st.take_rates(), counters=st.snapshot(),
+            node=self.name,
+            kind=self.kind,
+            pid=os.getpid(),
+            state=self.state,
+            uptime_s=time.monotonic() - self._t0,
+            rates=st.take_rates(),
+            counters=st.snapshot(),
             last_error=st.last_error,
         )
 

@@ -103,10 +103,22 @@ def add_bus_args(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add --connect/--listen/--mode/--config/--session/--multicast (every node takes them)."""
     g = parser.add_argument_group("bus")
     g.add_argument("--session", default="default", help="keys live under couture/<session>/ (default: %(default)s)")
-    g.add_argument("--connect", "-e", action="append", default=[], metavar="ENDPOINT",
-                   help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
-    g.add_argument("--listen", "-l", action="append", default=[], metavar="ENDPOINT",
-                   help="Zenoh endpoint to listen on (repeatable; default tcp/127.0.0.1:0, loopback only)")
+    g.add_argument(
+        "--connect",
+        "-e",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)",
+    )
+    g.add_argument(
+        "--listen",
+        "-l",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="Zenoh endpoint to listen on (repeatable; default tcp/127.0.0.1:0, loopback only)",
+    )
     g.add_argument("--mode", "-m", choices=["peer", "client", "router"], default="peer")
     g.add_argument("--config", dest="zenoh_config", default=None, metavar="FILE", help="Zenoh JSON5 config file")
     g.add_argument("--multicast", action="store_true", help="enable multicast scouting (off by default)")
@@ -207,8 +219,8 @@ class TypedPublisher(Generic[M]):
             # zenoh-ext advanced publisher: a subscriber that joins late (a
             # restarted solver, a reopened UI) receives the cached samples
             self._pub = zenoh.ext.declare_advanced_publisher(
-                bus.zenoh, self.key, cache=zenoh.ext.CacheConfig(max_samples=history),
-                publisher_detection=True, **opts)
+                bus.zenoh, self.key, cache=zenoh.ext.CacheConfig(max_samples=history), publisher_detection=True, **opts
+            )
             # AdvancedPublisher has no matching status: a plain publisher that
             # never sends answers "does anyone subscribe here?"
             self._probe = bus.zenoh.declare_publisher(self.key)
@@ -274,7 +286,7 @@ class Bus:
     def topic_of(self, key: str) -> str:
         """Relative topic of a full key (the key itself if outside the session)."""
         p = self.prefix + "/"
-        return key[len(p):] if key.startswith(p) else key
+        return key[len(p) :] if key.startswith(p) else key
 
     # -- publish / subscribe
     def publisher(self, topic: str, msg_type: type[M], *, drop: bool | None = None) -> TypedPublisher[M]:
@@ -334,8 +346,11 @@ class Bus:
         sub: zenoh.Subscriber | zenoh.ext.AdvancedSubscriber
         if history:  # late joiners get the cached samples of the topics that keep some
             sub = zenoh.ext.declare_advanced_subscriber(
-                self.zenoh, self.key(topic), on_sample,
-                history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=max(n_history, 1)))
+                self.zenoh,
+                self.key(topic),
+                on_sample,
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=max(n_history, 1)),
+            )
         else:
             sub = self.zenoh.declare_subscriber(self.key(topic), on_sample)
         self._closeables.append(sub)
@@ -467,7 +482,9 @@ class Bus:
         self._request_pub.put(request)
         key = self.key(f"solve/{name}" if name else "solve/*")
         replies = self.zenoh.get(
-            key, payload=encode(request), timeout=timeout,
+            key,
+            payload=encode(request),
+            timeout=timeout,
             target=zenoh.QueryTarget.BEST_MATCHING,
             congestion_control=zenoh.CongestionControl.BLOCK,
         )

@@ -142,21 +142,28 @@ class TriangleMeshDistance:
         out = np.empty(len(points))
         t0 = time.perf_counter()
         for s in range(0, len(points), chunk):
-            p = points[s:s + chunk]
+            p = points[s : s + chunk]
             _, cand = self.tree.query(p, k=self.k)
             cand = np.ascontiguousarray(cand.reshape(len(p), -1), dtype=np.int64)
-            K.signed_distance_candidates(p, cand, self.V, self.F, self.face_n, self.edge_n, self.vert_n, out[s:s + chunk])
+            K.signed_distance_candidates(
+                p, cand, self.V, self.F, self.face_n, self.edge_n, self.vert_n, out[s : s + chunk]
+            )
             if progress:
                 done = min(s + chunk, len(points))
-                print(f"\r{progress}: {done}/{len(points)} points, {time.perf_counter() - t0:.1f} s",
-                      end="", file=sys.stderr, flush=True)
+                print(
+                    f"\r{progress}: {done}/{len(points)} points, {time.perf_counter() - t0:.1f} s",
+                    end="",
+                    file=sys.stderr,
+                    flush=True,
+                )
         if progress:
             print(file=sys.stderr)
         return out
 
 
-def build_grid_sdf(vertices, faces, spacing: float = 0.01, margin: float = 0.05,
-                   progress: str | None = None) -> GridSDFBody:
+def build_grid_sdf(
+    vertices, faces, spacing: float = 0.01, margin: float = 0.05, progress: str | None = None
+) -> GridSDFBody:
     """Grid SDF over the mesh's bounding box grown by ``margin`` [m]."""
     V = np.asarray(vertices, dtype=np.float64)
     lo = V.min(axis=0) - margin
@@ -187,7 +194,9 @@ def load_mannequin_sdf(spacing: float = 0.01, margin: float = 0.05, verbose: boo
     path = cache_dir() / f"mannequin_sdf_{digest}_{spacing:g}_{margin:g}_v1.npz"
     if path.exists():
         with np.load(path) as z:
-            return GridSDFBody(origin=z["origin"], spacing=float(z["spacing"]), values=np.ascontiguousarray(z["values"]))
+            return GridSDFBody(
+                origin=z["origin"], spacing=float(z["spacing"]), values=np.ascontiguousarray(z["values"])
+            )
     V, F = load_mannequin_mesh()
     body = build_grid_sdf(V, F, spacing, margin, progress="mannequin SDF" if verbose else None)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -180,8 +180,7 @@ def _membrane_hessian_block(b, Sp, U, FFt, A, mu, lam, a, c, blk):
     (``_membrane_hessian_setup`` with ``project``) H is PSD, and unchanged in
     tension. H_ca = H_ac^T."""
     bb = b[a, 0] * b[c, 0] + b[a, 1] * b[c, 1]
-    g = A * (b[a, 0] * (Sp[0, 0] * b[c, 0] + Sp[0, 1] * b[c, 1])
-             + b[a, 1] * (Sp[1, 0] * b[c, 0] + Sp[1, 1] * b[c, 1]))
+    g = A * (b[a, 0] * (Sp[0, 0] * b[c, 0] + Sp[0, 1] * b[c, 1]) + b[a, 1] * (Sp[1, 0] * b[c, 0] + Sp[1, 1] * b[c, 1]))
     Amu = A * mu
     Alam = A * lam
     for i in range(3):
@@ -373,7 +372,6 @@ def bending_dforces_dX(x, X, dX, st, coef0, h, df):
                 sm += wm[a] * x[st[e, a], c]
             for a in range(4):
                 df[st[e, a], c] -= coef0 * (fp * wp[a] * sp - fm * wm[a] * sm) / (2.0 * h)
-
 
 
 @njit(cache=True)
@@ -583,8 +581,10 @@ def trilinear_phi_grad(points, origin, spacing, values, phi, grad):
         val = c0 * (1 - fz) + c1 * fz
         gz = (c1 - c0) / spacing
         gy = ((c10 - c00) * (1 - fz) + (c11 - c01) * fz) / spacing
-        gx = (((c100 - c000) * (1 - fy) + (c110 - c010) * fy) * (1 - fz)
-              + ((c101 - c001) * (1 - fy) + (c111 - c011) * fy) * fz) / spacing
+        gx = (
+            ((c100 - c000) * (1 - fy) + (c110 - c010) * fy) * (1 - fz)
+            + ((c101 - c001) * (1 - fy) + (c111 - c011) * fy) * fz
+        ) / spacing
         _write_phi_grad(p, val, gx, gy, gz, extra2, dirx, phi, grad)
 
 

@@ -192,8 +192,16 @@ class _Pattern:
         a = np.arange(3)
         pos = blk_base[:, None, None] + a[None, :, None] * blk_stride[:, None, None] + a[None, None, :]
         indices3[pos] = (3 * c[:, None, None] + a[None, None, :]).astype(np.int32)
-        return cls(n, indptr, c.astype(np.int32), blk_base.astype(np.int64), blk_stride.astype(np.int64),
-                   indptr3, indices3, key)
+        return cls(
+            n,
+            indptr,
+            c.astype(np.int32),
+            blk_base.astype(np.int64),
+            blk_stride.astype(np.int64),
+            indptr3,
+            indices3,
+            key,
+        )
 
     def slots(self, stencils: np.ndarray) -> np.ndarray:
         """(e, k, k) scalar-CSR slots of every vertex pair of each stencil (e, k)."""
@@ -252,14 +260,17 @@ class ClothModel:
             raise ValueError("Scene.friction needs a body")
         self.terms: tuple[str, ...] = tuple(terms)
 
-        self.seam_stiffness = (scene.seam_stiffness if scene.seam_stiffness is not None
-                               else SEAM_STIFFNESS_PER_MU * self.mu)
-        self.contact_stiffness = (scene.contact_stiffness if scene.contact_stiffness is not None
-                                  else CONTACT_STIFFNESS_PER_MU * self.mu)
+        self.seam_stiffness = (
+            scene.seam_stiffness if scene.seam_stiffness is not None else SEAM_STIFFNESS_PER_MU * self.mu
+        )
+        self.contact_stiffness = (
+            scene.contact_stiffness if scene.contact_stiffness is not None else CONTACT_STIFFNESS_PER_MU * self.mu
+        )
         self.contact_offset = float(scene.contact_offset)
         self.contact_smoothing = float(scene.contact_smoothing)
-        self.friction_stiffness = (scene.friction_stiffness if scene.friction_stiffness is not None
-                                   else self.contact_stiffness)
+        self.friction_stiffness = (
+            scene.friction_stiffness if scene.friction_stiffness is not None else self.contact_stiffness
+        )
         self.friction_static = float(getattr(fabric, "friction_static", 0.5))
         self.friction_kinetic = float(getattr(fabric, "friction_kinetic", 0.3))
 
@@ -327,14 +338,16 @@ class ClothModel:
         self.bend_vals = self._bend_vals(self.X)
         self.seam_vals = np.zeros(nnz)
         if self.has_seams:
-            K.stencil_scatter(self.seam_w, np.full(len(self.seam_w), float(self.seam_stiffness)),
-                              self.seam_slots, self.seam_vals)
+            K.stencil_scatter(
+                self.seam_w, np.full(len(self.seam_w), float(self.seam_stiffness)), self.seam_slots, self.seam_vals
+            )
         self.Qbend = self.pattern.scalar_matrix(self.bend_vals)
         self.Qseam = self.pattern.scalar_matrix(self.seam_vals)
         self.Qconst = self.pattern.scalar_matrix(self.bend_vals + self.seam_vals)
         self._const_data = np.zeros(len(self.pattern.indices3))
-        K.scalar_to_block_diag(self.bend_vals + self.seam_vals, self.pattern.blk_base,
-                               self.pattern.blk_stride, self._const_data)
+        K.scalar_to_block_diag(
+            self.bend_vals + self.seam_vals, self.pattern.blk_base, self.pattern.blk_stride, self._const_data
+        )
         self._bend_const = np.zeros_like(self._const_data)
         K.scalar_to_block_diag(self.bend_vals, self.pattern.blk_base, self.pattern.blk_stride, self._bend_const)
         self._seam_const = self._const_data - self._bend_const
@@ -438,15 +451,44 @@ class ClothModel:
         else:
             data[:] = 0.0
         if "membrane" in terms_:
-            K.membrane_stiffness(x, self.tris, self.Dminv, self.tri_area, self.mu, self.lam, project,
-                                 self.tri_slots, p.blk_base, p.blk_stride, data)
+            K.membrane_stiffness(
+                x,
+                self.tris,
+                self.Dminv,
+                self.tri_area,
+                self.mu,
+                self.lam,
+                project,
+                self.tri_slots,
+                p.blk_base,
+                p.blk_stride,
+                data,
+            )
         if "contact" in terms_:
             phi, grad = self._contact(x)
-            K.contact_stiffness(phi, grad, self._contact_hess(x, phi), self.contact_offset, self.contact_stiffness,
-                                self.contact_smoothing, project, self.diag_slots, p.blk_base, p.blk_stride, data)
+            K.contact_stiffness(
+                phi,
+                grad,
+                self._contact_hess(x, phi),
+                self.contact_offset,
+                self.contact_stiffness,
+                self.contact_smoothing,
+                project,
+                self.diag_slots,
+                p.blk_base,
+                p.blk_stride,
+                data,
+            )
         if "friction" in terms_:
-            K.anchor_stiffness(self.anchored, self.anchor_normal, self.friction_stiffness,
-                               self.diag_slots, p.blk_base, p.blk_stride, data)
+            K.anchor_stiffness(
+                self.anchored,
+                self.anchor_normal,
+                self.friction_stiffness,
+                self.diag_slots,
+                p.blk_base,
+                p.blk_stride,
+                data,
+            )
         if shared:
             return self._K
         return sp.csr_matrix((data, p.indices3, p.indptr3), shape=self._K.shape)
@@ -533,8 +575,9 @@ class ClothModel:
         self.sliding[j] = False
         touching = fn[over] > 0.0
         self.slipping[j[touching]] = True
-        self.slip_force[j[touching]] = ((self.friction_kinetic * fn[over][touching] / ft[over][touching])[:, None]
-                                        * fa[over][touching])
+        self.slip_force[j[touching]] = (self.friction_kinetic * fn[over][touching] / ft[over][touching])[:, None] * fa[
+            over
+        ][touching]
         return int(over.sum())
 
     def refresh_contacts(self, x: np.ndarray) -> int:
@@ -580,15 +623,27 @@ class ClothModel:
         None without friction: a solver that returns an earlier state returns its anchors too."""
         if "friction" not in self.terms:
             return None
-        return (self.anchored.copy(), self.sliding.copy(), self.anchor.copy(), self.anchor_normal.copy(),
-                self.slipping.copy(), self.slip_force.copy())
+        return (
+            self.anchored.copy(),
+            self.sliding.copy(),
+            self.anchor.copy(),
+            self.anchor_normal.copy(),
+            self.slipping.copy(),
+            self.slip_force.copy(),
+        )
 
     def set_friction_state(self, state: tuple[np.ndarray, ...] | None) -> None:
         """Put back anchors taken by ``friction_state``."""
         if state is None or "friction" not in self.terms:
             return
-        (self.anchored[:], self.sliding[:], self.anchor[:], self.anchor_normal[:],
-         self.slipping[:], self.slip_force[:]) = state
+        (
+            self.anchored[:],
+            self.sliding[:],
+            self.anchor[:],
+            self.anchor_normal[:],
+            self.slipping[:],
+            self.slip_force[:],
+        ) = state
 
     def release_friction(self) -> None:
         """Drop every friction anchor (no-op without friction): a solve that starts
@@ -644,8 +699,12 @@ class ClothModel:
                 nn = gn[j]
                 self.anchor[j] = x[j] - keep * (u - np.einsum("ij,ij->i", u, nn)[:, None] * nn)
                 self.anchor_normal[j] = nn
-        return {"anchored": int(self.anchored.sum()), "sliding": int(self.sliding.sum()),
-                "created": int(created.sum()), "released": int(released.sum())}
+        return {
+            "anchored": int(self.anchored.sum()),
+            "sliding": int(self.sliding.sum()),
+            "created": int(created.sum()),
+            "released": int(released.sum()),
+        }
 
     def bend_step(self, dX: np.ndarray) -> float:
         """Central-difference step h for the bending part of dforces_dX:

@@ -17,5 +17,16 @@ from couture.pattern.placement import place
 from couture.pattern.slopers import SLOPERS
 from couture.pattern.validate import validate
 
-__all__ = ["SPACING", "SLOPERS", "Option", "PatternError", "apply_edit", "draft", "draft_with_context",
-           "edit_elements", "edit_jacobian", "place", "validate"]
+__all__ = [
+    "SPACING",
+    "SLOPERS",
+    "Option",
+    "PatternError",
+    "apply_edit",
+    "draft",
+    "draft_with_context",
+    "edit_elements",
+    "edit_jacobian",
+    "place",
+    "validate",
+]

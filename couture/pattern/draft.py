@@ -52,6 +52,7 @@ STROKE_KINDS = ("curve", "dart", "hole", "seam", "symmetry")
 
 # ------------------------------------------------------------------ segments
 
+
 class SegEval:
     """A segment as a smooth map u in [0, 1] -> R^2 over its curves, with the
     curves' parameter ranges proportional to their fixed sample counts (so
@@ -110,6 +111,7 @@ class SegEval:
 
 # ------------------------------------------------------------------ context
 
+
 @dataclass
 class DartSpec:
     id: str
@@ -162,7 +164,9 @@ def _num(stroke_id: str, params: dict, key: str, lo=-math.inf, hi=math.inf, lo_o
     if not math.isfinite(v):
         raise PatternError(stroke_id, f"{key} = {v} is not finite")
     if v < lo or v > hi or (lo_open and v == lo) or (hi_open and v == hi):
-        raise PatternError(stroke_id, f"{key} = {v:g} is outside {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}")
+        raise PatternError(
+            stroke_id, f"{key} = {v:g} is outside {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+        )
     return v
 
 
@@ -193,6 +197,7 @@ def interior_frame(ctx: DraftContext, panel: str, params: dict, element: str):
 
 
 # ------------------------------------------------------------------ drafting
+
 
 def draft(design: Design, spacing: float = SPACING) -> DraftedPattern:
     """Draft a design into panels (dense CCW outlines, CW holes, named
@@ -283,15 +288,23 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
         holes: list[np.ndarray] = []
         for sg in pd.segments:
             seg = ctx.segs[(pd.name, sg.name)]
-            bds = sorted((d for d in ctx.darts.values() if d.kind == "boundary" and d.panel == pd.name
-                          and d.params.get("segment") == sg.name), key=lambda d: d.id)
+            bds = sorted(
+                (
+                    d
+                    for d in ctx.darts.values()
+                    if d.kind == "boundary" and d.panel == pd.name and d.params.get("segment") == sg.name
+                ),
+                key=lambda d: d.id,
+            )
             start = sum(len(p) for p in pts_all)
             if not bds:
                 pts_all.append(seg.samples())
             else:
                 if (pd.name, sg.name) in sewn:
-                    raise PatternError(bds[0].id, f"boundary dart on sewn segment {pd.name}:{sg.name} is not "
-                                                  "supported; use an interior dart")
+                    raise PatternError(
+                        bds[0].id,
+                        f"boundary dart on sewn segment {pd.name}:{sg.name} is not supported; use an interior dart",
+                    )
                 L = seg.length()
                 spans = []
                 for d in bds:
@@ -300,8 +313,11 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
                     ln = _num(d.id, d.params, "length", 0.0, 2.0, True)
                     ul, ur = pos - w / (2 * L), pos + w / (2 * L)
                     if ul <= 0.0 or ur >= 1.0:
-                        raise PatternError(d.id, f"dart (position {pos:g}, width {w:g} m) does not fit on "
-                                                 f"segment {pd.name}:{sg.name} ({L:.3f} m)")
+                        raise PatternError(
+                            d.id,
+                            f"dart (position {pos:g}, width {w:g} m) does not fit on "
+                            f"segment {pd.name}:{sg.name} ({L:.3f} m)",
+                        )
                     spans.append((ul, ur, ln, d))
                 order = sorted(range(len(spans)), key=lambda i: spans[i][0])
                 if order != sorted(range(len(spans)), key=lambda i: spans[i][3].id):
@@ -327,8 +343,9 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
                     pieces.append(leg_r)
                     segments.append(Segment(f"dart:{d.id}:left", i0, i0 + DART_LEG_SAMPLES))
                     segments.append(Segment(f"dart:{d.id}:right", i0 + DART_LEG_SAMPLES, i0 + 2 * DART_LEG_SAMPLES))
-                    dart_seams.append((SeamSpec(pd.name, f"dart:{d.id}:left", pd.name, f"dart:{d.id}:right", True),
-                                       d.id))
+                    dart_seams.append(
+                        (SeamSpec(pd.name, f"dart:{d.id}:left", pd.name, f"dart:{d.id}:right", True), d.id)
+                    )
                     u_prev = ur
                 pieces.append(seg.eval(np.linspace(u_prev, 1.0, npiece, endpoint=False)))
                 pts_all.append(np.vstack(pieces))
@@ -338,8 +355,9 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
         for s in segments:
             s.stop %= k
         # interior darts and holes
-        for d in sorted((d for d in ctx.darts.values() if d.panel == pd.name and d.kind in ("interior", "hole")),
-                        key=lambda d: d.id):
+        for d in sorted(
+            (d for d in ctx.darts.values() if d.panel == pd.name and d.kind in ("interior", "hole")), key=lambda d: d.id
+        ):
             c, t, a, _ = interior_frame(ctx, pd.name, d.params, d.id)
             if d.kind == "interior":
                 w = _num(d.id, d.params, "width", 0.0, 1.0, True)

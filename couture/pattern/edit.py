@@ -119,15 +119,19 @@ def _dofs(design: Design, element: str, ctx: DraftContext):
             t = T / np.linalg.norm(T)
             a = np.array([-t[1], t[0]])
             L = on.length()
-            table = {"position": (["position"], np.array([t / L])),
-                     "width": (["width"], np.array([2 * t])),
-                     "length": (["length"], np.array([a]))}
+            table = {
+                "position": (["position"], np.array([t / L])),
+                "width": (["width"], np.array([2 * t])),
+                "length": (["length"], np.array([a])),
+            }
         else:
             _, t, a, L = interior_frame(ctx, panel, prm, element)
-            table = {"position": (["position", "depth"], np.vstack([t / L, a])),
-                     "width": (["width"], np.array([2 * t])),
-                     "length": (["length"], np.array([2 * a])),
-                     "radius": (["radius"], np.array([t]))}
+            table = {
+                "position": (["position", "depth"], np.vstack([t / L, a])),
+                "width": (["width"], np.array([2 * t])),
+                "length": (["length"], np.array([2 * a])),
+                "radius": (["radius"], np.array([t])),
+            }
         if what not in table or any(k not in prm for k in table[what][0]):
             raise PatternError(element, f"{dkind} {did!r} has no editable {what!r}")
         keys, G = table[what]
@@ -141,8 +145,7 @@ def _dofs(design: Design, element: str, ctx: DraftContext):
                     x.params = {**x.params, **{k: float(v) for k, v in zip(keys, q, strict=True)}}
                     return d
             # a built-in sloper dart: add an override stroke with the same id
-            d.strokes = list(d.strokes) + [Stroke(id=did, kind="dart", panel=panel,
-                                                  params={k: new[k] for k in keys})]
+            d.strokes = list(d.strokes) + [Stroke(id=did, kind="dart", panel=panel, params={k: new[k] for k in keys})]
             return d
 
         return set_dart, np.array([float(prm[k]) for k in keys]), G
@@ -154,7 +157,7 @@ def _bounds(design: Design, element: str, n: int) -> tuple[np.ndarray, np.ndarra
     option's [min, max]; unbounded otherwise (validation judges the result)."""
     lo, hi = np.full(n, -np.inf), np.full(n, np.inf)
     if element.startswith("param:"):
-        name = element[len("param:"):]
+        name = element[len("param:") :]
         opt = next((o for o in sloper_of(design).options if o.name == name), None)
         if opt is not None:
             lo[:], hi[:] = opt.min, opt.max
@@ -171,8 +174,10 @@ def edit_jacobian(design: Design, element_id: str, spacing: float | None = None)
     kw = {} if spacing is None else {"spacing": spacing}
     p0, ctx = draft_with_context(design, **kw)
     setter, q, G = _dofs(design, element_id, ctx)
-    out = {pn.name: PanelJacobian(np.zeros((len(pn.outline), 2, 2)), [np.zeros((len(h), 2, 2)) for h in pn.holes])
-           for pn in p0.panels}
+    out = {
+        pn.name: PanelJacobian(np.zeros((len(pn.outline), 2, 2)), [np.zeros((len(h), 2, 2)) for h in pn.holes])
+        for pn in p0.panels
+    }
     for k in range(len(q)):
         e = np.zeros(len(q))
         e[k] = FD_STEP

@@ -88,7 +88,7 @@ def self_intersections(P: np.ndarray, closed: bool = True, chunk: int = 512) -> 
 
     idx = np.arange(k)
     for s in range(0, k, chunk):
-        i = idx[s:s + chunk]
+        i = idx[s : s + chunk]
         a1, b1 = A[i][:, None, :], B[i][:, None, :]
         a2, b2 = A[None, :, :], B[None, :, :]
         d1 = orient(a1, b1, a2)
@@ -105,7 +105,7 @@ def self_intersections(P: np.ndarray, closed: bool = True, chunk: int = 512) -> 
             t0 = ((a2 - a1) * ea).sum(-1)
             t1 = ((b2 - a1) * ea).sum(-1)
             L2 = (ea * ea).sum(-1)
-            ov = (np.maximum(np.minimum(t0, t1), 0) < np.minimum(np.maximum(t0, t1), L2) - eps)
+            ov = np.maximum(np.minimum(t0, t1), 0) < np.minimum(np.maximum(t0, t1), L2) - eps
             cross |= coll & ov
         ii, jj = np.nonzero(cross)
         ii = i[ii]

@@ -23,6 +23,7 @@ class DesignFile(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 
 # ------------------------------------------------------------------ JSON
 
+
 def design_to_json(design: Design) -> bytes:
     return msgspec.json.format(msgspec.json.encode(DesignFile(design=design)), indent=2)
 
@@ -61,9 +62,11 @@ def offset_outline(P: np.ndarray, d: float) -> np.ndarray:
         return P.copy()
     e_in = P - np.roll(P, 1, axis=0)
     e_out = np.roll(P, -1, axis=0) - P
+
     def nrm(e):
         n = np.stack([e[:, 1], -e[:, 0]], axis=1)
         return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
     n1, n2 = nrm(e_in), nrm(e_out)
     m = n1 + n2
     m /= np.maximum(np.linalg.norm(m, axis=1, keepdims=True), 1e-300)
@@ -114,12 +117,21 @@ def export_dxf(pattern: DraftedPattern, path: str | Path, seam_allowance: float 
             blk.add_polyline2d([tuple(v) for v in h * scale], close=True, dxfattribs={"layer": AAMA_CUTOUT})
         lo, hi = p.outline.min(0), p.outline.max(0)
         cx = 0.5 * (lo[0] + hi[0])
-        blk.add_line((cx * scale, (lo[1] + 0.25 * (hi[1] - lo[1])) * scale),
-                     (cx * scale, (lo[1] + 0.75 * (hi[1] - lo[1])) * scale), dxfattribs={"layer": AAMA_GRAIN})
+        blk.add_line(
+            (cx * scale, (lo[1] + 0.25 * (hi[1] - lo[1])) * scale),
+            (cx * scale, (lo[1] + 0.75 * (hi[1] - lo[1])) * scale),
+            dxfattribs={"layer": AAMA_GRAIN},
+        )
         if any(s.name.endswith("_mirror") for s in p.segments):
             blk.add_line((cx * scale, lo[1] * scale), (cx * scale, hi[1] * scale), dxfattribs={"layer": AAMA_MIRROR})
-        blk.add_text(f"Piece Name: {p.name}", dxfattribs={"layer": AAMA_GRAIN, "height": 10.0 if units == "mm" else 0.4,
-                                                           "insert": (cx * scale, 0.5 * (lo[1] + hi[1]) * scale)})
+        blk.add_text(
+            f"Piece Name: {p.name}",
+            dxfattribs={
+                "layer": AAMA_GRAIN,
+                "height": 10.0 if units == "mm" else 0.4,
+                "insert": (cx * scale, 0.5 * (lo[1] + hi[1]) * scale),
+            },
+        )
         msp.add_blockref(blk.name, (shift[0] * scale, shift[1] * scale))
     doc.saveas(str(path))
 
@@ -166,8 +178,10 @@ def export_svg(pattern: DraftedPattern, path: str | Path, seam_allowance: float 
     pieces = layout(pattern, seam_allowance)
     W, H = _extent(pieces, seam_allowance)
     mm = 1000.0
-    lines = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W * mm:.3f}mm" height="{H * mm:.3f}mm" '
-             f'viewBox="0 0 {W * mm:.3f} {H * mm:.3f}">']
+    lines = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{W * mm:.3f}mm" height="{H * mm:.3f}mm" '
+        f'viewBox="0 0 {W * mm:.3f} {H * mm:.3f}">'
+    ]
 
     def path_d(P, shift):
         Q = (P + shift) * mm
@@ -177,18 +191,26 @@ def export_svg(pattern: DraftedPattern, path: str | Path, seam_allowance: float 
         shift = shift + np.array([0.0, SCALE_SQUARE + 2 * GAP])
         lines.append(f'<g id="{_block_name(p.name)}">')
         if seam_allowance > 0:
-            lines.append(f'<path d="{path_d(offset_outline(p.outline, seam_allowance), shift)}" fill="none" '
-                         f'stroke="black" stroke-width="0.3"/>')
-        lines.append(f'<path class="sew" d="{path_d(p.outline, shift)}" fill="none" stroke="black" '
-                     f'stroke-width="0.5" stroke-dasharray="{"3,2" if seam_allowance > 0 else "none"}"/>')
+            lines.append(
+                f'<path d="{path_d(offset_outline(p.outline, seam_allowance), shift)}" fill="none" '
+                f'stroke="black" stroke-width="0.3"/>'
+            )
+        lines.append(
+            f'<path class="sew" d="{path_d(p.outline, shift)}" fill="none" stroke="black" '
+            f'stroke-width="0.5" stroke-dasharray="{"3,2" if seam_allowance > 0 else "none"}"/>'
+        )
         for h in p.holes:
             lines.append(f'<path class="hole" d="{path_d(h, shift)}" fill="none" stroke="red" stroke-width="0.3"/>')
         c = (p.outline.min(0) + p.outline.max(0)) / 2 + shift
-        lines.append(f'<text x="{c[0] * mm:.1f}" y="{H * mm - c[1] * mm:.1f}" font-size="12" '
-                     f'text-anchor="middle">{p.name}</text></g>')
+        lines.append(
+            f'<text x="{c[0] * mm:.1f}" y="{H * mm - c[1] * mm:.1f}" font-size="12" '
+            f'text-anchor="middle">{p.name}</text></g>'
+        )
     s = SCALE_SQUARE * mm
-    lines.append(f'<rect id="scale_check" x="{GAP * mm:.3f}" y="{H * mm - (GAP * mm + s):.3f}" width="{s:.3f}" '
-                 f'height="{s:.3f}" fill="none" stroke="blue" stroke-width="0.5"/>')
+    lines.append(
+        f'<rect id="scale_check" x="{GAP * mm:.3f}" y="{H * mm - (GAP * mm + s):.3f}" width="{s:.3f}" '
+        f'height="{s:.3f}" fill="none" stroke="blue" stroke-width="0.5"/>'
+    )
     lines.append(f'<text x="{GAP * mm:.1f}" y="{H * mm - GAP * mm * 0.3:.1f}" font-size="8">10 cm x 10 cm</text>')
     lines.append("</svg>")
     Path(path).write_text("\n".join(lines))
@@ -201,6 +223,7 @@ def _extent(pieces, seam_allowance):
 
 
 # ------------------------------------------------------------------ PDF
+
 
 def export_pdf(pattern: DraftedPattern, path: str | Path, seam_allowance: float = 0.0) -> tuple[float, float]:
     """True-scale PDF on one page large enough for every piece (print tiled

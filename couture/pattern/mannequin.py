@@ -51,16 +51,83 @@ TORSO_AXIS_Z = 0.04
 
 RADIUS_PROFILE_Y0 = -0.80
 RADIUS_PROFILE_DY = 0.02
-RADIUS_PROFILE = np.array([
-    0.285, 0.263, 0.26, 0.263, 0.258, 0.253, 0.25, 0.25, 0.249, 0.248, 0.248, 0.248, 0.248, 0.249,
-    0.25, 0.25, 0.248, 0.245, 0.237, 0.228, 0.218, 0.211, 0.204, 0.201, 0.198, 0.196, 0.195, 0.196,
-    0.197, 0.197, 0.199, 0.2, 0.2, 0.2, 0.199, 0.198, 0.196, 0.193, 0.189, 0.184, 0.179, 0.176,
-    0.174, 0.172, 0.171, 0.169, 0.167, 0.164, 0.158, 0.15, 0.141, 0.136, 0.135, 0.134, 0.132,
-    0.131, 0.131, 0.132, 0.137, 0.147, 0.145, 0.151, 0.161,
-    # above the underarm the section holds the arms too; torso-only values
-    # from the shoulder strap region (|x| < 0.15), see measure_mannequin
-    0.17, 0.17, 0.17, 0.17, 0.17, 0.17, 0.096, 0.072,
-])
+RADIUS_PROFILE = np.array(
+    [
+        0.285,
+        0.263,
+        0.26,
+        0.263,
+        0.258,
+        0.253,
+        0.25,
+        0.25,
+        0.249,
+        0.248,
+        0.248,
+        0.248,
+        0.248,
+        0.249,
+        0.25,
+        0.25,
+        0.248,
+        0.245,
+        0.237,
+        0.228,
+        0.218,
+        0.211,
+        0.204,
+        0.201,
+        0.198,
+        0.196,
+        0.195,
+        0.196,
+        0.197,
+        0.197,
+        0.199,
+        0.2,
+        0.2,
+        0.2,
+        0.199,
+        0.198,
+        0.196,
+        0.193,
+        0.189,
+        0.184,
+        0.179,
+        0.176,
+        0.174,
+        0.172,
+        0.171,
+        0.169,
+        0.167,
+        0.164,
+        0.158,
+        0.15,
+        0.141,
+        0.136,
+        0.135,
+        0.134,
+        0.132,
+        0.131,
+        0.131,
+        0.132,
+        0.137,
+        0.147,
+        0.145,
+        0.151,
+        0.161,
+        # above the underarm the section holds the arms too; torso-only values
+        # from the shoulder strap region (|x| < 0.15), see measure_mannequin
+        0.17,
+        0.17,
+        0.17,
+        0.17,
+        0.17,
+        0.17,
+        0.096,
+        0.072,
+    ]
+)
 """[m] largest distance of torso/leg (not arm) section points from the vertical
 axis x = 0, z = TORSO_AXIS_Z, for y = Y0 + i * DY"""
 
@@ -132,5 +199,9 @@ def measure_mannequin(path: str | None = None) -> dict[str, float]:
     waist = min(torso(y) for y in np.arange(0.20, 0.40, 0.01))
     hip = max(torso(y) for y in np.arange(-0.04, 0.10, 0.01))
     bust = max(torso(y) for y in np.arange(0.36, 0.445, 0.01))
-    return {"waist_girth": waist, "hip_girth": hip, "bust_girth": bust,
-            "height": float(mesh.bounds[1, 1] - mesh.bounds[0, 1])}
+    return {
+        "waist_girth": waist,
+        "hip_girth": hip,
+        "bust_girth": bust,
+        "height": float(mesh.bounds[1, 1] - mesh.bounds[0, 1]),
+    }

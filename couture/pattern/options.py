@@ -36,8 +36,13 @@ WAIST = _body("waist_girth", M.WAIST_GIRTH, 0.50, 1.30, "waist circumference (ma
 HIP = _body("hip_girth", M.HIP_GIRTH, 0.70, 1.60, "hip circumference (mannequin: largest girth above the crotch)")
 BUST = _body("bust_girth", M.BUST_GIRTH, 0.65, 1.50, "bust/chest circumference below the underarm")
 WAIST_TO_HIP = _body("waist_to_hip", M.WAIST_Y - M.HIP_Y, 0.12, 0.34, "vertical distance waist to hip line")
-WAIST_TO_UNDERARM = _body("waist_to_underarm", M.UNDERARM_Y - M.WAIST_Y - 0.03, 0.10, 0.20,
-                          "waist to the underarm point of the side seam (2-3 cm below the armpit)")
+WAIST_TO_UNDERARM = _body(
+    "waist_to_underarm",
+    M.UNDERARM_Y - M.WAIST_Y - 0.03,
+    0.10,
+    0.20,
+    "waist to the underarm point of the side seam (2-3 cm below the armpit)",
+)
 WAIST_TO_SHOULDER = _body("waist_to_shoulder", M.SHOULDER_Y - M.WAIST_Y, 0.25, 0.45, "waist to shoulder tip height")
 SHOULDER_WIDTH = _body("shoulder_width", 2 * M.SHOULDER_HALF_WIDTH, 0.30, 0.55, "shoulder tip to shoulder tip")
 NECK_GIRTH = _body("neck_girth", M.NECK_GIRTH, 0.28, 0.50, "neck base circumference")

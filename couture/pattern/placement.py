@@ -111,8 +111,11 @@ def place(panel: Panel, points2d: np.ndarray) -> np.ndarray:
     x = -P[:, 0] if pl.flip else P[:, 0]
     th = pl.angle0 + x / r
     along = P[:, 1] / np.sqrt(1.0 + taper * taper)
-    return (np.asarray(pl.origin, float) + along[:, None] * a
-            + r[:, None] * (np.cos(th)[:, None] * f + np.sin(th)[:, None] * b))
+    return (
+        np.asarray(pl.origin, float)
+        + along[:, None] * a
+        + r[:, None] * (np.cos(th)[:, None] * f + np.sin(th)[:, None] * b)
+    )
 
 
 def _extents(outline: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -230,7 +233,14 @@ def fit_ring(ring, panels: dict[str, Panel]) -> dict[str, Placement]:
 
     out = {}
     for p, name in enumerate(ring.panels):
-        out[name] = Placement("wrap", origin.copy(), axis=None if ring.axis is None else a.copy(),
-                              ref=None if ring.ref is None else f.copy(),
-                              rows_y=ys.copy(), rows_axial=axial.copy(), rows_x0=x0[p].copy(), rows_radius=R.copy())
+        out[name] = Placement(
+            "wrap",
+            origin.copy(),
+            axis=None if ring.axis is None else a.copy(),
+            ref=None if ring.ref is None else f.copy(),
+            rows_y=ys.copy(),
+            rows_axial=axial.copy(),
+            rows_x0=x0[p].copy(),
+            rows_radius=R.copy(),
+        )
     return out

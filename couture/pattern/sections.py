@@ -165,8 +165,17 @@ def sections() -> dict[str, Section]:
     """The stored tables (regenerate with ``python -m couture.pattern.sections``)."""
     with np.load(SECTIONS_PATH) as z:
         names = sorted({k.split(".")[0] for k in z.files})
-        return {n: Section(z[f"{n}.origin"], z[f"{n}.axis"], z[f"{n}.ref"], float(z[f"{n}.t"][0]),
-                           float(z[f"{n}.t"][1]), z[f"{n}.radius"].astype(np.float64)) for n in names}
+        return {
+            n: Section(
+                z[f"{n}.origin"],
+                z[f"{n}.axis"],
+                z[f"{n}.ref"],
+                float(z[f"{n}.t"][0]),
+                float(z[f"{n}.t"][1]),
+                z[f"{n}.radius"].astype(np.float64),
+            )
+            for n in names
+        }
 
 
 if __name__ == "__main__":

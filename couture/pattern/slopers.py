@@ -98,6 +98,7 @@ def _mirror_panel(name: str, right: list[SegDef], top: SegDef | None, bottom: Se
     ``top``/``bottom``: full-width segments crossing x = 0 (given whole).
     Left segments are the mirrored right ones, renamed ``*_right -> *_left``.
     """
+
     def mirror(seg: SegDef) -> SegDef:
         curves = [Curve(c.pts[::-1] * np.array([-1.0, 1.0])) for c in reversed(seg.curves)]
         return SegDef(seg.name.replace("_right", "_left"), curves)
@@ -129,8 +130,9 @@ def _skirt_side(ww, wh, h, L, f):
 
 def _hem(C, k, f) -> SegDef:
     Cl = C * np.array([-1.0, 1.0])
-    return SegDef("hem", [bezier(Cl, Cl + k * np.array([np.cos(f), -np.sin(f)]),
-                                  C - k * np.array([np.cos(f), np.sin(f)]), C)])
+    return SegDef(
+        "hem", [bezier(Cl, Cl + k * np.array([np.cos(f), -np.sin(f)]), C - k * np.array([np.cos(f), np.sin(f)]), C)]
+    )
 
 
 def _torso_body_radius(y_waist: float):
@@ -140,7 +142,9 @@ def _torso_body_radius(y_waist: float):
 # ---------------------------------------------------------------- skirt
 
 SKIRT_OPTIONS = (
-    O.WAIST, O.HIP, O.WAIST_TO_HIP,
+    O.WAIST,
+    O.HIP,
+    O.WAIST_TO_HIP,
     opt("length", 0.60, 0.38, 1.00, "m", "waist to hem at centre"),
     opt("flare", 0.12, 0.0, 0.60, "rad", "angle of each side seam from vertical below the hip"),
     opt("panels", 4, 2, 8, "count", "number of panels (gores); topology option", integer=True),
@@ -166,12 +170,14 @@ def draft_skirt(p: dict[str, float]) -> SloperDraft:
     names = ["front", "back"] if n == 2 else [f"gore{i}" for i in range(n)]
     panels = skirt_panels(names, p, p["waist_girth"] + p["waist_ease"], p["hip_girth"] + p["hip_ease"], p["length"])
     seams = [(names[i], "side_right", names[(i + 1) % n], "side_left") for i in range(n)]
-    ring = Ring(names, [2 * np.pi * i / n for i in range(n)], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]),
-                section="torso")
+    ring = Ring(
+        names, [2 * np.pi * i / n for i in range(n)], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]), section="torso"
+    )
     return SloperDraft(panels, seams, [ring])
 
 
 # ---------------------------------------------------------------- bodice pieces
+
 
 def _bodice_right(p, ww, bw, neck_depth, below: list[Curve], start):
     """Right half of a bodice above the waist: side (from ``start``), armhole,
@@ -184,21 +190,42 @@ def _bodice_right(p, ww, bw, neck_depth, below: list[Curve], start):
     N = np.array([nr, hs + 0.025])
     side = SegDef("side_right", below + [bezier(W, W + np.array([0, hu / 3]), U - np.array([0, hu / 3]), U)])
     inner = min(U[0], S[0]) - 0.03
-    arm = SegDef("armhole_right", [bezier(U, np.array([inner, U[1] + 0.005]),
-                                         np.array([S[0] - 0.01, S[1] - 0.4 * (S[1] - U[1])]), S)])
+    arm = SegDef(
+        "armhole_right",
+        [bezier(U, np.array([inner, U[1] + 0.005]), np.array([S[0] - 0.01, S[1] - 0.4 * (S[1] - U[1])]), S)],
+    )
     shoulder = SegDef("shoulder_right", [line(S, N)])
     Nl = N * np.array([-1.0, 1.0])
-    neck = SegDef("neck", [bezier(N, N + np.array([0, -0.55 * neck_depth]),
-                                  np.array([0.55 * nr, N[1] - neck_depth]), np.array([0.0, N[1] - neck_depth])),
-                           bezier(np.array([0.0, N[1] - neck_depth]), np.array([-0.55 * nr, N[1] - neck_depth]),
-                                  Nl + np.array([0, -0.55 * neck_depth]), Nl)])
+    neck = SegDef(
+        "neck",
+        [
+            bezier(
+                N,
+                N + np.array([0, -0.55 * neck_depth]),
+                np.array([0.55 * nr, N[1] - neck_depth]),
+                np.array([0.0, N[1] - neck_depth]),
+            ),
+            bezier(
+                np.array([0.0, N[1] - neck_depth]),
+                np.array([-0.55 * nr, N[1] - neck_depth]),
+                Nl + np.array([0, -0.55 * neck_depth]),
+                Nl,
+            ),
+        ],
+    )
     return [side, arm, shoulder], neck
 
 
 # ---------------------------------------------------------------- dress
 
 DRESS_OPTIONS = (
-    O.BUST, O.WAIST, O.HIP, O.WAIST_TO_HIP, O.WAIST_TO_UNDERARM, O.WAIST_TO_SHOULDER, O.SHOULDER_WIDTH,
+    O.BUST,
+    O.WAIST,
+    O.HIP,
+    O.WAIST_TO_HIP,
+    O.WAIST_TO_UNDERARM,
+    O.WAIST_TO_SHOULDER,
+    O.SHOULDER_WIDTH,
     O.NECK_GIRTH,
     opt("length", 0.55, 0.38, 1.00, "m", "waist to hem"),
     opt("flare", 0.06, 0.0, 0.40, "rad", "side seam angle below the hip"),
@@ -223,28 +250,59 @@ def draft_dress(p: dict[str, float]) -> SloperDraft:
         side, C, k, f = _skirt_side(ww, wh, p["waist_to_hip"], p["length"], p["flare"])
         right, neck = _bodice_right(p, ww, bw, depth, side, side[-1].pts[-1])
         panels.append(_mirror_panel(name, right, neck, _hem(C, k, f)))
-    seams = [("front", "side_right", "back", "side_left"), ("back", "side_right", "front", "side_left"),
-             ("front", "shoulder_right", "back", "shoulder_left"), ("back", "shoulder_right", "front", "shoulder_left")]
+    seams = [
+        ("front", "side_right", "back", "side_left"),
+        ("back", "side_right", "front", "side_left"),
+        ("front", "shoulder_right", "back", "shoulder_left"),
+        ("back", "shoulder_right", "front", "shoulder_left"),
+    ]
     darts = []
     for name in ("front", "back"):
         for side_name, pos in (("l", 0.30), ("r", 0.70)):
-            darts.append(BuiltinDart(f"{name}.waist_dart_{side_name}", name, "interior",
-                                     {"anchor": "hem", "position": pos, "depth": p["length"] - 0.02,
-                                      "width": dw, "length": 0.30, "offset": 0.0}))
+            darts.append(
+                BuiltinDart(
+                    f"{name}.waist_dart_{side_name}",
+                    name,
+                    "interior",
+                    {
+                        "anchor": "hem",
+                        "position": pos,
+                        "depth": p["length"] - 0.02,
+                        "width": dw,
+                        "length": 0.30,
+                        "offset": 0.0,
+                    },
+                )
+            )
     if p["bust_dart_width"] > 0:
         for s in ("left", "right"):
-            darts.append(BuiltinDart(f"front.bust_dart_{s}", "front", "boundary",
-                                     {"segment": f"armhole_{s}", "position": 0.35, "width": p["bust_dart_width"],
-                                      "length": 0.3 * (p["waist_to_shoulder"] - p["waist_to_underarm"])}))
-    ring = Ring(["front", "back"], [0.0, np.pi], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]),
-                section="torso")
+            darts.append(
+                BuiltinDart(
+                    f"front.bust_dart_{s}",
+                    "front",
+                    "boundary",
+                    {
+                        "segment": f"armhole_{s}",
+                        "position": 0.35,
+                        "width": p["bust_dart_width"],
+                        "length": 0.3 * (p["waist_to_shoulder"] - p["waist_to_underarm"]),
+                    },
+                )
+            )
+    ring = Ring(["front", "back"], [0.0, np.pi], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]), section="torso")
     return SloperDraft(panels, seams, [ring], darts)
 
 
 # ---------------------------------------------------------------- shirt
 
 SHIRT_OPTIONS = (
-    O.BUST, O.WAIST_TO_UNDERARM, O.WAIST_TO_SHOULDER, O.SHOULDER_WIDTH, O.NECK_GIRTH, O.ARM_GIRTH, O.HIP,
+    O.BUST,
+    O.WAIST_TO_UNDERARM,
+    O.WAIST_TO_SHOULDER,
+    O.SHOULDER_WIDTH,
+    O.NECK_GIRTH,
+    O.ARM_GIRTH,
+    O.HIP,
     opt("length", 0.20, 0.05, 0.45, "m", "waist to hem"),
     opt("ease", 0.10, 0.02, 0.30, "m", "added to bust and hip girths"),
     opt("sleeve_length", 0.22, 0.18, 0.40, "m", "cap top to sleeve hem (short to below the elbow)"),
@@ -283,19 +341,31 @@ def draft_shirt(p: dict[str, float]) -> SloperDraft:
     Cf = np.array([cw, -sl])
     T = np.array([0.0, 0.0])
     cap_r = SegDef("cap_right", [bezier(B, B + np.array([-0.35 * sw, 0.15 * ch]), T + np.array([0.45 * sw, 0.0]), T)])
-    cap_l = SegDef("cap_left", [bezier(T, T - np.array([0.45 * sw, 0.0]), B * np.array([-1, 1]) + np.array([0.35 * sw, 0.15 * ch]),
-                                       B * np.array([-1.0, 1.0]))])
+    cap_l = SegDef(
+        "cap_left",
+        [
+            bezier(
+                T,
+                T - np.array([0.45 * sw, 0.0]),
+                B * np.array([-1, 1]) + np.array([0.35 * sw, 0.15 * ch]),
+                B * np.array([-1.0, 1.0]),
+            )
+        ],
+    )
     under_r = SegDef("underarm_right", [line(Cf, B)])
     under_l = SegDef("underarm_left", [line(B * np.array([-1.0, 1.0]), Cf * np.array([-1.0, 1.0]))])
     cuff = SegDef("cuff", [line(Cf * np.array([-1.0, 1.0]), Cf)])
     for name in ("sleeve_left", "sleeve_right"):
         panels.append(PanelDef(name, [cuff, under_r, cap_r, cap_l, under_l]))
-    seams = [("front", "side_right", "back", "side_left"), ("back", "side_right", "front", "side_left"),
-             ("front", "shoulder_right", "back", "shoulder_left"), ("back", "shoulder_right", "front", "shoulder_left"),
-             ("sleeve_left", "underarm_right", "sleeve_left", "underarm_left"),
-             ("sleeve_right", "underarm_right", "sleeve_right", "underarm_left")]
-    rings = [Ring(["front", "back"], [0.0, np.pi], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]),
-                  section="torso")]
+    seams = [
+        ("front", "side_right", "back", "side_left"),
+        ("back", "side_right", "front", "side_left"),
+        ("front", "shoulder_right", "back", "shoulder_left"),
+        ("back", "shoulder_right", "front", "shoulder_left"),
+        ("sleeve_left", "underarm_right", "sleeve_left", "underarm_left"),
+        ("sleeve_right", "underarm_right", "sleeve_right", "underarm_left"),
+    ]
+    rings = [Ring(["front", "back"], [0.0, np.pi], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]), section="torso")]
     for name, sign in (("sleeve_left", 1.0), ("sleeve_right", -1.0)):
         a, f = _arm_frame(sign)
         b = np.cross(a, f)
@@ -311,15 +381,29 @@ def draft_shirt(p: dict[str, float]) -> SloperDraft:
             seams += [(name, "cap_right", "back", back_arm), (name, "cap_left", "front", front_arm)]
         # cap top a little down the arm, clear of the shoulder
         origin = M.LEFT_ARM_SHOULDER * np.array([sign, 1.0, 1.0]) - 0.03 * a
-        rings.append(Ring([name], [0.0], origin, axis=a, ref=f,
-                          body_radius=_cap_radius, section="left_arm" if sign > 0 else "right_arm"))
+        rings.append(
+            Ring(
+                [name],
+                [0.0],
+                origin,
+                axis=a,
+                ref=f,
+                body_radius=_cap_radius,
+                section="left_arm" if sign > 0 else "right_arm",
+            )
+        )
     return SloperDraft(panels, seams, rings)
 
 
 # ---------------------------------------------------------------- trousers
 
 TROUSERS_OPTIONS = (
-    O.WAIST, O.HIP, O.WAIST_TO_HIP, O.CROTCH_DEPTH, O.THIGH, O.ANKLE,
+    O.WAIST,
+    O.HIP,
+    O.WAIST_TO_HIP,
+    O.CROTCH_DEPTH,
+    O.THIGH,
+    O.ANKLE,
     opt("length", 0.95, 0.40, 1.10, "m", "waist to hem along the side seam"),
     opt("waist_ease", 0.02, 0.0, 0.10, "m", "added to the waist girth"),
     opt("hip_ease", 0.05, 0.0, 0.15, "m", "added to the hip girth"),
@@ -352,12 +436,22 @@ def draft_trousers(p: dict[str, float]) -> SloperDraft:
     Hem_out = np.array([mid + hem_w / 2, -L])
     segs = [
         SegDef("hem", [line(Hem_in, Hem_out)]),
-        SegDef("side", [bezier(Hem_out, Hem_out + np.array([0.0, 0.3 * (L - hh)]), Hs + np.array([0.0, -0.3 * (L - hh)]), Hs),
-                        bezier(Hs, Hs + np.array([0, hh / 3]), Ws + np.array([0, -hh / 3]), Ws)]),
+        SegDef(
+            "side",
+            [
+                bezier(Hem_out, Hem_out + np.array([0.0, 0.3 * (L - hh)]), Hs + np.array([0.0, -0.3 * (L - hh)]), Hs),
+                bezier(Hs, Hs + np.array([0, hh / 3]), Ws + np.array([0, -hh / 3]), Ws),
+            ],
+        ),
         SegDef("waist", [line(Ws, Wc)]),
         SegDef("center", [bezier(Wc, Wc + np.array([0.0, -0.5 * cd]), Cr + np.array([0.4 * ext, 0.25 * cd]), Cr)]),
-        SegDef("inseam", [bezier(Cr, K_in + np.array([-0.02, 0.03]), K_in, K_in + np.array([0.0, -0.05])),
-                          line(K_in + np.array([0.0, -0.05]), Hem_in)]),
+        SegDef(
+            "inseam",
+            [
+                bezier(Cr, K_in + np.array([-0.02, 0.03]), K_in, K_in + np.array([0.0, -0.05])),
+                line(K_in + np.array([0.0, -0.05]), Hem_in),
+            ],
+        ),
     ]
     # the crotch extension is deeper at the back
     for name in ("front_left", "back_left", "front_right", "back_right"):
@@ -366,12 +460,19 @@ def draft_trousers(p: dict[str, float]) -> SloperDraft:
         mirror = name in ("back_left", "front_right")
         s = segs
         if mirror:  # mirror x and reverse to stay CCW
-            s = [SegDef(sg.name, [Curve(c.pts[::-1] * np.array([-1.0, 1.0])) for c in reversed(sg.curves)])
-                 for sg in reversed(segs)]
+            s = [
+                SegDef(sg.name, [Curve(c.pts[::-1] * np.array([-1.0, 1.0])) for c in reversed(sg.curves)])
+                for sg in reversed(segs)
+            ]
         panels.append(PanelDef(name, [SegDef(sg.name, list(sg.curves)) for sg in s]))
-    seams = [("front_left", "side", "back_left", "side"), ("front_left", "inseam", "back_left", "inseam"),
-             ("front_right", "side", "back_right", "side"), ("front_right", "inseam", "back_right", "inseam"),
-             ("front_left", "center", "front_right", "center"), ("back_left", "center", "back_right", "center")]
+    seams = [
+        ("front_left", "side", "back_left", "side"),
+        ("front_left", "inseam", "back_left", "inseam"),
+        ("front_right", "side", "back_right", "side"),
+        ("front_right", "inseam", "back_right", "inseam"),
+        ("front_left", "center", "front_right", "center"),
+        ("back_left", "center", "back_right", "center"),
+    ]
     rings = []
     for leg, sign in (("left", 1.0), ("right", -1.0)):
         a = M.LEFT_LEG_AXIS * np.array([sign, 1.0, 1.0])
@@ -389,8 +490,18 @@ def draft_trousers(p: dict[str, float]) -> SloperDraft:
         b = np.cross(a, f)
         inner = np.array([-sign, 0.0, 0.0])
         order = [f"front_{leg}", f"back_{leg}"] if sign > 0 else [f"back_{leg}", f"front_{leg}"]
-        rings.append(Ring(order, [0.0, np.pi], origin, axis=a, ref=f, margin=0.02,
-                          section=f"{leg}_leg", gap_at=float(np.arctan2(inner @ b, inner @ f))))
+        rings.append(
+            Ring(
+                order,
+                [0.0, np.pi],
+                origin,
+                axis=a,
+                ref=f,
+                margin=0.02,
+                section=f"{leg}_leg",
+                gap_at=float(np.arctan2(inner @ b, inner @ f)),
+            )
+        )
     return SloperDraft(panels, seams, rings)
 
 
@@ -403,8 +514,11 @@ def _cap_radius(ym):
 def _leg_body_radius(ym):
     """Body radius about a leg axis by material height (pelvis above the crotch)."""
     y = M.WAIST_Y + np.asarray(ym)
-    return np.interp(y, [M.FLOOR_Y, M.KNEE_Y, M.CROTCH_Y - 0.1, M.CROTCH_Y, M.HIP_Y + 0.1, M.WAIST_Y + 0.05],
-                     [0.09, 0.08, 0.095, 0.14, 0.22, 0.20])
+    return np.interp(
+        y,
+        [M.FLOOR_Y, M.KNEE_Y, M.CROTCH_Y - 0.1, M.CROTCH_Y, M.HIP_Y + 0.1, M.WAIST_Y + 0.05],
+        [0.09, 0.08, 0.095, 0.14, 0.22, 0.20],
+    )
 
 
 SLOPERS: dict[str, SloperDef] = {

@@ -26,8 +26,10 @@ def check_pattern(pattern: DraftedPattern, owners: dict[int, str] | None = None)
         hits = self_intersections(p.outline)
         if hits:
             i, j = hits[0]
-            raise PatternError(f"{p.name}:{_seg_at(p, i)}", f"outline self-intersects (edges {i} and {j}, "
-                                                            f"segments {_seg_at(p, i)!r} and {_seg_at(p, j)!r})")
+            raise PatternError(
+                f"{p.name}:{_seg_at(p, i)}",
+                f"outline self-intersects (edges {i} and {j}, segments {_seg_at(p, i)!r} and {_seg_at(p, j)!r})",
+            )
         for hi, h in enumerate(p.holes):
             if self_intersections(h):
                 raise PatternError(f"{p.name}:{_seg_at(p, 0, hi)}", f"hole {hi} self-intersects")
@@ -47,8 +49,11 @@ def check_pattern(pattern: DraftedPattern, owners: dict[int, str] | None = None)
             raise PatternError(el, f"segment {sp.a_panel}:{sp.a_segment} is sewn to itself")
         la, lb = polyline_length(segment_points(pa, sa)), polyline_length(segment_points(pb, sb))
         if max(la, lb) > GATHER_RATIO_MAX * max(min(la, lb), 1e-12):
-            raise PatternError(el, f"seam lengths {la:.3f} m and {lb:.3f} m differ by more than the "
-                                   f"gather ratio limit {GATHER_RATIO_MAX:g}x")
+            raise PatternError(
+                el,
+                f"seam lengths {la:.3f} m and {lb:.3f} m differ by more than the "
+                f"gather ratio limit {GATHER_RATIO_MAX:g}x",
+            )
 
 
 def _seg_at(p, i, hole=-1) -> str:

@@ -11,7 +11,9 @@ from couture.recording.recorder import RecordConfig, main
 
 
 def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
-    p = parser or argparse.ArgumentParser(prog="python -m couture.recording", description="record couture messages to MCAP")
+    p = parser or argparse.ArgumentParser(
+        prog="python -m couture.recording", description="record couture messages to MCAP"
+    )
     p.add_argument("out", nargs="?", help="output .mcap file")
     p.add_argument("keyexprs", nargs="*", help="key expressions (default couture/<session>/**)")
     p.add_argument("--out", dest="out_flag", default=None, help="output .mcap file (alternative to the positional)")
@@ -29,8 +31,14 @@ def config_from_args(a: argparse.Namespace) -> RecordConfig:
     if not out:
         raise SystemExit("record: give an output file (OUT.mcap or --out OUT.mcap)")
     return RecordConfig(
-        out=out, bus=bus_config_from_args(a), keyexprs=list(a.keyexprs), all_sessions=a.all_sessions,
-        flush_interval_s=a.flush_interval, progress=not a.quiet, name=a.name, duration_s=a.duration,
+        out=out,
+        bus=bus_config_from_args(a),
+        keyexprs=list(a.keyexprs),
+        all_sessions=a.all_sessions,
+        flush_interval_s=a.flush_interval,
+        progress=not a.quiet,
+        name=a.name,
+        duration_s=a.duration,
     )
 
 

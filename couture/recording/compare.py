@@ -151,24 +151,32 @@ class CompareReport:
         return d
 
     def text(self) -> str:
-        lines = [f"compare {self.golden} -> {self.actual} (rtol={self.rtol:g}, atol={self.atol:g})",
-                 f"{'topic':<24} {'matched':>7} {'missing':>7} {'extra':>5} {'worst abs':>11} {'worst rel':>11}  status"]
+        lines = [
+            f"compare {self.golden} -> {self.actual} (rtol={self.rtol:g}, atol={self.atol:g})",
+            f"{'topic':<24} {'matched':>7} {'missing':>7} {'extra':>5} {'worst abs':>11} {'worst rel':>11}  status",
+        ]
         for name, t in sorted(self.topics.items()):
-            lines.append(f"{name:<24} {t.matched:>7} {len(t.missing):>7} {len(t.extra):>5} {t.worst_abs:>11.3e} "
-                         f"{t.worst_rel:>11.3e}  {'ok' if t.ok else 'FAIL'}" + (f"  ({t.worst_where})" if t.worst_where else ""))
+            lines.append(
+                f"{name:<24} {t.matched:>7} {len(t.missing):>7} {len(t.extra):>5} {t.worst_abs:>11.3e} "
+                f"{t.worst_rel:>11.3e}  {'ok' if t.ok else 'FAIL'}" + (f"  ({t.worst_where})" if t.worst_where else "")
+            )
         rows = [r for t in self.topics.values() for r in t.drapes]
         if rows:
             lines.append(f"drapes ({self.rule}); iterations and wall times reported, not compared:")
-            lines.append(f"  {'drape':<14} {'gen':>3} {'status g/a':<11} {'residual g/a (tol)':<26} {'iters g/a':>9} "
-                         f"{'wall g/a [s]':>12} {'vertex':>6} {'dev [mm]':>8} {'bound':>7}")
+            lines.append(
+                f"  {'drape':<14} {'gen':>3} {'status g/a':<11} {'residual g/a (tol)':<26} {'iters g/a':>9} "
+                f"{'wall g/a [s]':>12} {'vertex':>6} {'dev [mm]':>8} {'bound':>7}"
+            )
             for r in sorted(rows, key=lambda r: (r.generation, r.level)):
                 st = "/".join("conv" if c else "stop" for c in r.converged)
                 res = f"{r.residual[0]:.1e}/{r.residual[1]:.1e} ({r.tol:.0e})"
                 its = f"{r.iterations[0]}/{r.iterations[1]}"
                 wall = f"{r.wall_time_s[0]:.2f}/{r.wall_time_s[1]:.2f}"
-                lines.append(f"  drape/{r.level:<8} {r.generation:>3} {st:<11} {res:<26} {its:>9} {wall:>12} "
-                             f"{r.worst_vertex:>6} {r.deviation_m * 1e3:>8.3f} {r.bound_m * 1e3:>7.3f}"
-                             f"{'' if r.ok else '  FAIL'}")
+                lines.append(
+                    f"  drape/{r.level:<8} {r.generation:>3} {st:<11} {res:<26} {its:>9} {wall:>12} "
+                    f"{r.worst_vertex:>6} {r.deviation_m * 1e3:>8.3f} {r.bound_m * 1e3:>7.3f}"
+                    f"{'' if r.ok else '  FAIL'}"
+                )
         if not self.topics:
             lines.append("(no output messages in the golden recording)")
         if self.first_deviation:
@@ -203,8 +211,15 @@ def _outputs(path: str, topics: list[str]) -> tuple[dict[str, Message], dict[str
     return out, order, bad
 
 
-def compare(golden: str, actual: str, *, rtol: float = 1e-5, atol: float = 1e-8,
-            topics: list[str] | None = None, rule: PhysicsRule | None = None) -> CompareReport:
+def compare(
+    golden: str,
+    actual: str,
+    *,
+    rtol: float = 1e-5,
+    atol: float = 1e-8,
+    topics: list[str] | None = None,
+    rule: PhysicsRule | None = None,
+) -> CompareReport:
     """Compare output messages of two recordings (see module doc); ``topics``
     defaults to the compared topics of the table. With ``rule``, final drapes
     are compared by :func:`compare_drape` and ``rtol``/``atol`` apply to the
@@ -213,8 +228,10 @@ def compare(golden: str, actual: str, *, rtol: float = 1e-5, atol: float = 1e-8,
     rep = CompareReport(golden=golden, actual=actual, rtol=rtol, atol=atol)
     if rule is not None:
         caps = ", ".join(f"{lv} {c * 1e3:g} mm" for lv, c in rule.cap_m.items())
-        rep.rule = (f"converged alike, residual <= tol on both sides, worst vertex <= {rule.floor_m * 1e3:g} mm + "
-                    f"{rule.safety:g} (r_golden + r_actual) ||F_g||/lambda_min, at most {caps}")
+        rep.rule = (
+            f"converged alike, residual <= tol on both sides, worst vertex <= {rule.floor_m * 1e3:g} mm + "
+            f"{rule.safety:g} (r_golden + r_actual) ||F_g||/lambda_min, at most {caps}"
+        )
     g, g_order, g_bad = _outputs(golden, topics)
     a, _, a_bad = _outputs(actual, topics)
     if g_bad:
@@ -259,14 +276,23 @@ def compare_drape(key: str, g: DrapeMsg, a: DrapeMsg, rule: PhysicsRule, tr: Top
     Returns the deviations (each names topic, generation and worst vertex)."""
     where = f"{key.split(' ', 1)[0]} generation {g.generation}"
     tol = rule.tol.get(g.level, math.inf)
-    row = DrapeRow(key=key, level=g.level, generation=g.generation, converged=(g.converged, a.converged),
-                   residual=(g.residual, a.residual), tol=tol, iterations=(g.iterations, a.iterations),
-                   wall_time_s=(g.wall_time_s, a.wall_time_s))
+    row = DrapeRow(
+        key=key,
+        level=g.level,
+        generation=g.generation,
+        converged=(g.converged, a.converged),
+        residual=(g.residual, a.residual),
+        tol=tol,
+        iterations=(g.iterations, a.iterations),
+        wall_time_s=(g.wall_time_s, a.wall_time_s),
+    )
     tr.drapes.append(row)
     devs: list[str] = []
     if g.converged != a.converged:
-        devs.append(f"{where}: {'converged' if a.converged else 'stopped (' + a.diagnosis + ')'} vs golden "
-                    f"{'converged' if g.converged else 'stopped (' + g.diagnosis + ')'}")
+        devs.append(
+            f"{where}: {'converged' if a.converged else 'stopped (' + a.diagnosis + ')'} vs golden "
+            f"{'converged' if g.converged else 'stopped (' + g.diagnosis + ')'}"
+        )
     for side, m in (("golden", g), ("actual", a)):
         if m.converged and not m.residual <= tol:
             devs.append(f"{where}: {side} says converged at residual {m.residual:.3e} > tol {tol:.0e}")
@@ -282,21 +308,35 @@ def compare_drape(key: str, g: DrapeMsg, a: DrapeMsg, rule: PhysicsRule, tr: Top
             _note(tr, row.deviation_m, 0.0, f"{where} vertex {i}")
         if g.converged and a.converged:
             row.bound_m, row.compliance_m = rule.bound(key, g, a)
-            why = (f"{rule.floor_m * 1e3:g} mm + {rule.safety:g} x ({g.residual:.2e} + {a.residual:.2e}) x "
-                   f"{row.compliance_m:.3g} m, cap {rule.cap(g.level) * 1e3:g} mm")
+            why = (
+                f"{rule.floor_m * 1e3:g} mm + {rule.safety:g} x ({g.residual:.2e} + {a.residual:.2e}) x "
+                f"{row.compliance_m:.3g} m, cap {rule.cap(g.level) * 1e3:g} mm"
+            )
         else:  # a stopped solve's state is wherever its path ended: only the cap holds
             row.bound_m = rule.cap(g.level)
             why = f"cap {row.bound_m * 1e3:g} mm (not both converged)"
         if row.deviation_m > row.bound_m:
-            devs.append(f"{where}: worst vertex {row.worst_vertex} deviates {row.deviation_m * 1e3:.3f} mm > bound "
-                        f"{row.bound_m * 1e3:.3f} mm ({why}); {int((dist > row.bound_m).sum())} vertices off")
+            devs.append(
+                f"{where}: worst vertex {row.worst_vertex} deviates {row.deviation_m * 1e3:.3f} mm > bound "
+                f"{row.bound_m * 1e3:.3f} mm ({why}); {int((dist > row.bound_m).sum())} vertices off"
+            )
     row.ok = not devs
     return devs
 
 
-def _compare_values(gv: Any, av: Any, path: str, rtol: float, atol: float, tr: TopicReport, key: str, devs: list[str],
-                    skip: set[str] = frozenset(), cap: float = math.inf,  # type: ignore[assignment]
-                    ignore: set[str] = IGNORED_FIELDS) -> None:
+def _compare_values(
+    gv: Any,
+    av: Any,
+    path: str,
+    rtol: float,
+    atol: float,
+    tr: TopicReport,
+    key: str,
+    devs: list[str],
+    skip: set[str] = frozenset(),
+    cap: float = math.inf,  # type: ignore[assignment]
+    ignore: set[str] = IGNORED_FIELDS,
+) -> None:
     if isinstance(gv, msgspec.Struct) and not isinstance(gv, Array):
         if type(gv) is not type(av):
             devs.append(f"{path}: type {type(av).__name__} != {type(gv).__name__}")
@@ -311,7 +351,9 @@ def _compare_values(gv: Any, av: Any, path: str, rtol: float, atol: float, tr: T
         return
     if isinstance(gv, Array) or isinstance(av, Array):
         if not (isinstance(gv, Array) and isinstance(av, Array)):
-            devs.append(f"{path}: {'array' if isinstance(gv, Array) else gv!r} in golden, {'array' if isinstance(av, Array) else av!r} in actual")
+            devs.append(
+                f"{path}: {'array' if isinstance(gv, Array) else gv!r} in golden, {'array' if isinstance(av, Array) else av!r} in actual"
+            )
             return
         if list(gv.shape) != list(av.shape):
             devs.append(f"{path}: shape {tuple(av.shape)} != golden {tuple(gv.shape)}")
@@ -325,16 +367,25 @@ def _compare_values(gv: Any, av: Any, path: str, rtol: float, atol: float, tr: T
             diff[np.isnan(diff)] = np.inf
             if diff.size:
                 i = int(np.argmax(diff))
-                _note(tr, float(diff.flat[i]), float(diff.flat[i] / max(abs(ga64.flat[i]), 1e-12)), f"{key} {path}[{np.unravel_index(i, ga.shape)}]")
+                _note(
+                    tr,
+                    float(diff.flat[i]),
+                    float(diff.flat[i] / max(abs(ga64.flat[i]), 1e-12)),
+                    f"{key} {path}[{np.unravel_index(i, ga.shape)}]",
+                )
                 bad = diff > atol + rtol * np.abs(ga64)
                 if bad.any():
                     j = int(np.flatnonzero(bad)[0])
                     idx = np.unravel_index(j, ga.shape)
-                    devs.append(f"{path}{list(idx)}: {aa64.flat[j]!r} vs golden {ga64.flat[j]!r} "
-                                f"(|diff| {diff.flat[j]:.3e} > {atol:g} + {rtol:g}*|golden|; {int(bad.sum())} elements off)")
+                    devs.append(
+                        f"{path}{list(idx)}: {aa64.flat[j]!r} vs golden {ga64.flat[j]!r} "
+                        f"(|diff| {diff.flat[j]:.3e} > {atol:g} + {rtol:g}*|golden|; {int(bad.sum())} elements off)"
+                    )
         elif not np.array_equal(ga, aa):
             j = int(np.flatnonzero(ga.ravel() != aa.ravel())[0])
-            devs.append(f"{path}[{list(np.unravel_index(j, ga.shape))}]: {aa.flat[j]} vs golden {ga.flat[j]} (integers must match)")
+            devs.append(
+                f"{path}[{list(np.unravel_index(j, ga.shape))}]: {aa.flat[j]} vs golden {ga.flat[j]} (integers must match)"
+            )
         return
     if isinstance(gv, float) or isinstance(av, float):
         if isinstance(gv, (int, float)) and isinstance(av, (int, float)) and not isinstance(gv, bool):

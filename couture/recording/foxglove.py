@@ -152,9 +152,14 @@ assert [f.number for f in Point3.DESCRIPTOR.fields] == [1, 2, 3]
 assert [f.number for f in Color.DESCRIPTOR.fields] == [1, 2, 3, 4]
 
 
-def triangle_list(points: np.ndarray, tris: np.ndarray, *, colors: np.ndarray | None = None,
-                  color: tuple[float, float, float, float] | None = None,
-                  offset: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> TriangleListPrimitive:
+def triangle_list(
+    points: np.ndarray,
+    tris: np.ndarray,
+    *,
+    colors: np.ndarray | None = None,
+    color: tuple[float, float, float, float] | None = None,
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> TriangleListPrimitive:
     """A foxglove.TriangleListPrimitive: ``points`` [m] (n, 3), ``tris`` (m, 3)
     as indices, per-vertex ``colors`` RGBA 0..1 (n, 4) or one ``color``, the
     whole list translated by ``offset`` [m] (its pose)."""
@@ -171,8 +176,9 @@ def triangle_list(points: np.ndarray, tris: np.ndarray, *, colors: np.ndarray | 
     return prim
 
 
-def scene_update(entity_id: str, frame_id: str, t_ns: int, prim: TriangleListPrimitive,
-                 metadata: dict[str, str] | None = None) -> SceneUpdate:
+def scene_update(
+    entity_id: str, frame_id: str, t_ns: int, prim: TriangleListPrimitive, metadata: dict[str, str] | None = None
+) -> SceneUpdate:
     """A SceneUpdate with one entity (replacing any earlier one of the same id)."""
     upd = SceneUpdate()
     ent: SceneEntity = upd.entities.add()
@@ -241,8 +247,9 @@ class _FoxgloveChannels:
             self._channels[topic] = cid
         seq = self._seq.get(topic, 0) + 1
         self._seq[topic] = seq
-        self.w.add_message(channel_id=cid, log_time=log_time, publish_time=publish_time,
-                           data=msg.SerializeToString(), sequence=seq)
+        self.w.add_message(
+            channel_id=cid, log_time=log_time, publish_time=publish_time, data=msg.SerializeToString(), sequence=seq
+        )
         self.stats.by_topic[topic] = self.stats.by_topic.get(topic, 0) + 1
 
 
@@ -250,9 +257,15 @@ MESHES_KEPT_PER_LEVEL = 8
 """mesh_generations remembered per (session, level) for drapes that arrive late"""
 
 
-def export_foxglove(src: str | Path, dst: str | Path, *, strain_max: float = STRAIN_RANGE[1],
-                    n_bands: int = STRAIN_BANDS, body: str | Path | None = MANNEQUIN_OBJ,
-                    pattern: bool = True) -> ExportStats:
+def export_foxglove(
+    src: str | Path,
+    dst: str | Path,
+    *,
+    strain_max: float = STRAIN_RANGE[1],
+    n_bands: int = STRAIN_BANDS,
+    body: str | Path | None = MANNEQUIN_OBJ,
+    pattern: bool = True,
+) -> ExportStats:
     """Copy recording ``src`` into ``dst`` unchanged and add Foxglove channels
     (module docstring). ``strain_max``: top of the fixed strain colour range
     (Green strain, dimensionless); ``body``: OBJ (y up, metres) to show, None
@@ -312,8 +325,11 @@ def export_foxglove(src: str | Path, dst: str | Path, *, strain_max: float = STR
                     continue
                 channels[rec.id] = rec
                 channel_ids[rec.id] = w.register_channel(
-                    topic=rec.topic, message_encoding=rec.message_encoding,
-                    schema_id=schema_ids.get(rec.schema_id, 0), metadata=dict(rec.metadata))
+                    topic=rec.topic,
+                    message_encoding=rec.message_encoding,
+                    schema_id=schema_ids.get(rec.schema_id, 0),
+                    metadata=dict(rec.metadata),
+                )
             elif isinstance(rec, McapMessage):
                 ch = channels.get(rec.channel_id)
                 if ch is None:
@@ -321,30 +337,62 @@ def export_foxglove(src: str | Path, dst: str | Path, *, strain_max: float = STR
                 if not started:
                     started = True
                     first_message(fox, rec.log_time)
-                w.add_message(channel_id=channel_ids[rec.channel_id], log_time=rec.log_time, data=rec.data,
-                              publish_time=rec.publish_time, sequence=rec.sequence)
+                w.add_message(
+                    channel_id=channel_ids[rec.channel_id],
+                    log_time=rec.log_time,
+                    data=rec.data,
+                    publish_time=rec.publish_time,
+                    sequence=rec.sequence,
+                )
                 stats.copied += 1
-                _derive(ch, rec, fox, stats, scale, meshes, fine_pattern_seen, last_error,
-                        (pattern_offset_x, pattern_center_y) if pattern else None)
+                _derive(
+                    ch,
+                    rec,
+                    fox,
+                    stats,
+                    scale,
+                    meshes,
+                    fine_pattern_seen,
+                    last_error,
+                    (pattern_offset_x, pattern_center_y) if pattern else None,
+                )
             elif isinstance(rec, Attachment):
-                w.add_attachment(create_time=rec.create_time, log_time=rec.log_time, name=rec.name,
-                                 media_type=rec.media_type, data=rec.data)
+                w.add_attachment(
+                    create_time=rec.create_time,
+                    log_time=rec.log_time,
+                    name=rec.name,
+                    media_type=rec.media_type,
+                    data=rec.data,
+                )
             elif isinstance(rec, Metadata):
                 w.add_metadata(rec.name, dict(rec.metadata))
         w, fox = opened if opened is not None else start("")
         if not started and body_vt is not None:
             first_message(fox, 0)
-        w.add_metadata("couture/export-foxglove", {
-            "source": str(src), "strain_scale": f"max principal Green strain, {scale.lo:g}..{scale.hi:g}, "
-                                                f"{scale.n_bands} bands, viridis",
-            "frames": f"{COUTURE_FRAME} (y up) -> {WORLD_FRAME} (z up): +90 deg about x",
-        })
+        w.add_metadata(
+            "couture/export-foxglove",
+            {
+                "source": str(src),
+                "strain_scale": f"max principal Green strain, {scale.lo:g}..{scale.hi:g}, "
+                f"{scale.n_bands} bands, viridis",
+                "frames": f"{COUTURE_FRAME} (y up) -> {WORLD_FRAME} (z up): +90 deg about x",
+            },
+        )
         w.finish()
     return stats
 
 
-def _derive(ch: Channel, rec: McapMessage, fox: _FoxgloveChannels, stats: ExportStats, scale: ColorScale,
-            meshes: dict, fine_pattern_seen: set, last_error: dict, pattern_place: tuple[float, float] | None) -> None:
+def _derive(
+    ch: Channel,
+    rec: McapMessage,
+    fox: _FoxgloveChannels,
+    stats: ExportStats,
+    scale: ColorScale,
+    meshes: dict,
+    fine_pattern_seen: set,
+    last_error: dict,
+    pattern_place: tuple[float, float] | None,
+) -> None:
     """The Foxglove messages one original message gives rise to."""
     session, topic = split_key(ch.topic)
     kind = topic.split("/", 1)[0]
@@ -369,9 +417,23 @@ def _derive(ch: Channel, rec: McapMessage, fox: _FoxgloveChannels, stats: Export
             pts = np.column_stack([X, np.zeros(len(X))])
             off = (pattern_place[0] - X[:, 0].min(), pattern_place[1] - 0.5 * (X[:, 1].min() + X[:, 1].max()), 0.0)
             prim = triangle_list(pts, msg.tris.numpy(), color=PATTERN_RGBA, offset=off)
-            fox.write("/foxglove/pattern", scene_update("pattern", COUTURE_FRAME, t, prim, {
-                "level": msg.level, "generation": str(msg.generation), "mesh_generation": str(msg.mesh_generation),
-                "panels": ", ".join(msg.panel_names)}), t, rec.publish_time)
+            fox.write(
+                "/foxglove/pattern",
+                scene_update(
+                    "pattern",
+                    COUTURE_FRAME,
+                    t,
+                    prim,
+                    {
+                        "level": msg.level,
+                        "generation": str(msg.generation),
+                        "mesh_generation": str(msg.mesh_generation),
+                        "panels": ", ".join(msg.panel_names),
+                    },
+                ),
+                t,
+                rec.publish_time,
+            )
             stats.patterns += 1
     elif isinstance(msg, DrapeMsg):
         if msg.level not in DRAPE_LEVELS:
@@ -386,16 +448,26 @@ def _derive(ch: Channel, rec: McapMessage, fox: _FoxgloveChannels, stats: Export
         e = vertex_strain(mesh.X.numpy(), x, tris)
         prim = triangle_list(x, tris, colors=strain_colors(e, scale))
         meta = {
-            "generation": str(msg.generation), "mesh_level": mesh_level, "mesh_generation": str(msg.mesh_generation),
-            "residual": f"{msg.residual:.3g}", "iterations": str(msg.iterations), "solver": msg.solver,
-            "method": msg.method, "converged": str(msg.converged), "final": str(msg.final),
+            "generation": str(msg.generation),
+            "mesh_level": mesh_level,
+            "mesh_generation": str(msg.mesh_generation),
+            "residual": f"{msg.residual:.3g}",
+            "iterations": str(msg.iterations),
+            "solver": msg.solver,
+            "method": msg.method,
+            "converged": str(msg.converged),
+            "final": str(msg.final),
             "strain_max": f"{float(e.max()) if e.size else 0.0:.4g}",
             "strain_scale": f"max principal Green strain {scale.lo:g}..{scale.hi:g}, {scale.n_bands} bands",
         }
         if msg.diagnosis:
             meta["diagnosis"] = msg.diagnosis
-        fox.write(f"/foxglove/drape/{msg.level}", scene_update(f"drape/{msg.level}", COUTURE_FRAME, t, prim, meta),
-                  t, rec.publish_time)
+        fox.write(
+            f"/foxglove/drape/{msg.level}",
+            scene_update(f"drape/{msg.level}", COUTURE_FRAME, t, prim, meta),
+            t,
+            rec.publish_time,
+        )
         stats.drapes += 1
     elif isinstance(msg, StatusMsg):
         node = f"{session}/{msg.node}" if session else msg.node

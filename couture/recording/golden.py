@@ -119,8 +119,11 @@ def case_designs(case: Case) -> list[Design]:
 
 
 def _nodes(case: Case, record: Path) -> list[supervisor.NodeSpec]:
-    nodes = [n for n in supervisor.default_nodes(solvers=case.solvers, ui=False, record=str(record))
-             if n.name != "sensitivity"]  # inputs here are whole patterns, no drags
+    nodes = [
+        n
+        for n in supervisor.default_nodes(solvers=case.solvers, ui=False, record=str(record))
+        if n.name != "sensitivity"
+    ]  # inputs here are whole patterns, no drags
     return nodes
 
 
@@ -152,7 +155,7 @@ def _wait_recorder(sup: supervisor.Supervisor, timeout: float = 30.0) -> None:
 
 
 def sup_solvers(sup: supervisor.Supervisor) -> list[str]:
-    return [n[len("solver-"):] for n in sup.children if n.startswith("solver-")]
+    return [n[len("solver-") :] for n in sup.children if n.startswith("solver-")]
 
 
 def make(case: Case) -> Path:
@@ -170,8 +173,11 @@ def make(case: Case) -> Path:
             for i, d in enumerate(designs):
                 gen = client.publish_pattern(d, name=f"{case.name}-{i}")
                 drape = client.wait_drape("fine", generation=gen, timeout=case.timeout_s, final=True)
-                print(f"[golden] {case.name}: design {i} (generation {gen}) residual {drape.residual:.2e} "
-                      f"{'converged' if drape.converged else drape.diagnosis}", file=sys.stderr)
+                print(
+                    f"[golden] {case.name}: design {i} (generation {gen}) residual {drape.residual:.2e} "
+                    f"{'converged' if drape.converged else drape.diagnosis}",
+                    file=sys.stderr,
+                )
             time.sleep(0.5)  # let the recorder take the last messages
     new.replace(out)
     return out
@@ -184,10 +190,12 @@ def changes(case: Case, old: Path, new: Path) -> str:
     lines = [f"[golden] {case.name}: what changed (old golden -> new recording)"]
     for name, t in sorted(rep.topics.items()):
         its = sum(r.iterations[0] for r in t.drapes), sum(r.iterations[1] for r in t.drapes)
-        lines.append(f"  {name:<14} max deviation {t.worst_abs * 1e3:8.3f} mm"
-                     + (f"  iterations {its[0]} -> {its[1]}" if t.drapes else "")
-                     + (f"  ({t.worst_where})" if t.worst_where else "")
-                     + (f"  {len(t.missing)} missing, {len(t.extra)} new" if t.missing or t.extra else ""))
+        lines.append(
+            f"  {name:<14} max deviation {t.worst_abs * 1e3:8.3f} mm"
+            + (f"  iterations {its[0]} -> {its[1]}" if t.drapes else "")
+            + (f"  ({t.worst_where})" if t.worst_where else "")
+            + (f"  {len(t.missing)} missing, {len(t.extra)} new" if t.missing or t.extra else "")
+        )
     lines.append(rep.text())
     verdict = "the new golden agrees with the old one" if rep.ok else "the physics changed (or the session did)"
     lines.append(f"[golden] {case.name}: {verdict}")
@@ -258,9 +266,15 @@ def compliances(path: Path | str) -> dict[str, float]:
 def rule(case: Case, golden: Path | str | None = None, labels: set[str] | None = None) -> PhysicsRule:
     """The physics rule for a case (module doc), compliances from ``golden``."""
     table = compliances(golden or case.mcap)
-    return PhysicsRule(tol=solver_tolerances(), cap_m=dict(case.cap_m), floor_m=case.floor_m, safety=case.safety,
-                       compliance=lambda key, _g: table.get(key, float("inf")),
-                       path_fields={"mesh/coarse": {"x0"}, "mesh/fine": {"x0"}}, labels=labels or set())
+    return PhysicsRule(
+        tol=solver_tolerances(),
+        cap_m=dict(case.cap_m),
+        floor_m=case.floor_m,
+        safety=case.safety,
+        compliance=lambda key, _g: table.get(key, float("inf")),
+        path_fields={"mesh/coarse": {"x0"}, "mesh/fine": {"x0"}},
+        labels=labels or set(),
+    )
 
 
 TOPICS = ["mesh/coarse", "mesh/fine", "drape/coarse", "drape/fine"]
@@ -270,8 +284,9 @@ def compare_case(case: Case, golden: Path | str, actual: Path | str, labels: set
     """Compare two recordings of the case under its physics rule. A replay
     re-sends the golden's patterns, so their design ids come back; two makes
     publish fresh ones (``labels={"design_id"}`` leaves them out)."""
-    return compare(str(golden), str(actual), rtol=case.rtol, atol=case.atol, topics=TOPICS,
-                   rule=rule(case, golden, labels))
+    return compare(
+        str(golden), str(actual), rtol=case.rtol, atol=case.atol, topics=TOPICS, rule=rule(case, golden, labels)
+    )
 
 
 def scaled_inputs(golden: Path | str, out: Path | str, fabric_scale: dict[str, float]) -> Path:
@@ -290,7 +305,9 @@ def scaled_inputs(golden: Path | str, out: Path | str, fabric_scale: dict[str, f
             if rec.topic == "pattern":
                 msg = decode(data, PatternMsg)
                 changes = {k: getattr(msg.design.fabric, k) * f for k, f in fabric_scale.items()}
-                design = msgspec.structs.replace(msg.design, fabric=msgspec.structs.replace(msg.design.fabric, **changes))
+                design = msgspec.structs.replace(
+                    msg.design, fabric=msgspec.structs.replace(msg.design.fabric, **changes)
+                )
                 data = encode(msgspec.structs.replace(msg, design=design))
             w.write(rec.key, data, rec.log_time, schema=rec.schema or None)
     finally:
@@ -316,8 +333,11 @@ def _run(case: Case, inputs: Path, record: Path) -> None:
     """Fresh nodes recording into ``record``; the inputs replayed in lockstep."""
     with supervisor.Supervisor(supervisor.SupervisorConfig(bus=_session(), nodes=_nodes(case, record))) as sup:
         _wait_recorder(sup)
-        replay(ReplayConfig(path=str(inputs), bus=sup.child_bus, rate=0.0, lockstep=True,
-                            lockstep_timeout_s=case.timeout_s))
+        replay(
+            ReplayConfig(
+                path=str(inputs), bus=sup.child_bus, rate=0.0, lockstep=True, lockstep_timeout_s=case.timeout_s
+            )
+        )
         time.sleep(0.5)
 
 
@@ -325,9 +345,12 @@ def main(argv: list[str] | None = None) -> int:
     import argparse
 
     p = argparse.ArgumentParser(prog="couture golden", description=__doc__.split("\n\n")[0])
-    p.add_argument("action", choices=["make", "check", "list"],
-                   help="make: re-record (prints what changed against the old golden); "
-                        "check: replay into fresh nodes and compare; list: the cases")
+    p.add_argument(
+        "action",
+        choices=["make", "check", "list"],
+        help="make: re-record (prints what changed against the old golden); "
+        "check: replay into fresh nodes and compare; list: the cases",
+    )
     p.add_argument("cases", nargs="*", help="case names (recordings/<case>.json); default: all")
     p.add_argument("--json", default=None, help="check: write the reports here (one JSON object per case name)")
     a = p.parse_args(argv)
@@ -335,7 +358,9 @@ def main(argv: list[str] | None = None) -> int:
     if a.action == "list":
         for n in names:
             c = load_case(n)
-            print(f"{n}: {len(c.designs)} designs, solvers {c.solvers}, golden {'present' if c.mcap.exists() else 'missing'}")
+            print(
+                f"{n}: {len(c.designs)} designs, solvers {c.solvers}, golden {'present' if c.mcap.exists() else 'missing'}"
+            )
         return 0
     failed = 0
     reports = {}

@@ -76,7 +76,9 @@ class SessionWriter:
             self._schemas[name] = self._writer.register_schema(name=name, encoding="jsonschema", data=json_schema(cls))
         return self._schemas[name]
 
-    def write(self, key: str, data: bytes, log_time: int, publish_time: int | None = None, schema: str | None = None) -> None:
+    def write(
+        self, key: str, data: bytes, log_time: int, publish_time: int | None = None, schema: str | None = None
+    ) -> None:
         if schema is None or publish_time is None:
             sch, stamp = _head(data)
             schema = sch if schema is None else schema
@@ -85,7 +87,9 @@ class SessionWriter:
         if cid is None:
             session, topic = split_key(key)
             cid = self._writer.register_channel(
-                topic=key, message_encoding=MESSAGE_ENCODING, schema_id=self._schema_id(schema),
+                topic=key,
+                message_encoding=MESSAGE_ENCODING,
+                schema_id=self._schema_id(schema),
                 metadata={"session": session, "topic": topic, "schema": schema},
             )
             self._channels[(key, schema)] = cid
@@ -164,8 +168,12 @@ def read_session(path: str, topics: list[str] | None = None, *, strict: bool = F
                     continue
                 sch = schemas.get(ch.schema_id)
                 yield Recorded(
-                    key=ch.topic, topic=topic, schema=sch.name if sch else ch.metadata.get("schema", ""),
-                    data=rec.data, log_time=rec.log_time, publish_time=rec.publish_time,
+                    key=ch.topic,
+                    topic=topic,
+                    schema=sch.name if sch else ch.metadata.get("schema", ""),
+                    data=rec.data,
+                    log_time=rec.log_time,
+                    publish_time=rec.publish_time,
                 )
 
 
@@ -177,7 +185,7 @@ def topic_matches(pattern: str, topic: str) -> bool:
         return topic.startswith(pattern[:-2]) or topic == pattern[:-3]
     if pattern.endswith("/*"):
         head = pattern[:-1]
-        return topic.startswith(head) and "/" not in topic[len(head):]
+        return topic.startswith(head) and "/" not in topic[len(head) :]
     return False
 
 

@@ -64,6 +64,7 @@ def main(config: RecordConfig) -> RecordStats:
         # live only once subscribed: whoever waits for the recorder's liveliness
         # may publish right away and must not be missed
         with Node(config.name, config.bus, kind="recorder", announce=False) as node:
+
             def on_sample(key: str, data: bytes, t: int) -> None:
                 if records(key):
                     inbox.put((key, data, t))
@@ -85,7 +86,8 @@ def main(config: RecordConfig) -> RecordStats:
                     print(
                         f"[record] {writer.messages} msgs, {writer.bytes / 1e6:.1f} MB | "
                         f"{(writer.messages - last_msgs) / dt:.0f} msg/s, {(writer.bytes - last_bytes) / dt / 1e6:.2f} MB/s",
-                        file=sys.stderr, flush=True,
+                        file=sys.stderr,
+                        flush=True,
                     )
                     last_report, last_msgs, last_bytes = now, writer.messages, writer.bytes
             # messages already delivered to our callbacks still belong in the file
@@ -100,8 +102,11 @@ def main(config: RecordConfig) -> RecordStats:
         writer.close()
         stats.messages, stats.bytes, stats.seconds = writer.messages, writer.bytes, time.monotonic() - t0
         if config.progress:
-            print(f"[record] finalized {config.out}: {stats.messages} msgs, {stats.bytes / 1e6:.1f} MB in {stats.seconds:.1f} s",
-                  file=sys.stderr, flush=True)
+            print(
+                f"[record] finalized {config.out}: {stats.messages} msgs, {stats.bytes / 1e6:.1f} MB in {stats.seconds:.1f} s",
+                file=sys.stderr,
+                flush=True,
+            )
     return stats
 
 

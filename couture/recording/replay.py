@@ -64,7 +64,9 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
         if config.wait_nodes:
             missing = bus.wait_nodes(config.wait_nodes, config.wait_timeout_s)
             if missing:
-                raise TimeoutError(f"replay: nodes {missing} not live on session {config.bus.session} after {config.wait_timeout_s:g} s")
+                raise TimeoutError(
+                    f"replay: nodes {missing} not live on session {config.bus.session} after {config.wait_timeout_s:g} s"
+                )
         deadline = time.monotonic() + config.wait_timeout_s
         for pub in pubs.values():
             if not pub.wait_matching(max(0.0, deadline - time.monotonic())):
@@ -75,11 +77,13 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
         done_gen = [-1]
         cv = threading.Condition()
         if config.lockstep:
+
             def on_drape(msg: DrapeMsg) -> None:
                 if msg.final:
                     with cv:
                         done_gen[0] = max(done_gen[0], msg.generation)
                         cv.notify_all()
+
             bus.subscribe("drape/fine", on_drape, DrapeMsg)
 
         def wait_outputs(generation: int) -> None:
@@ -88,8 +92,10 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
                 while done_gen[0] < generation and not stop.is_set():
                     left = deadline - time.monotonic()
                     if left <= 0:
-                        raise TimeoutError(f"replay --lockstep: no final drape/fine for generation {generation} "
-                                           f"within {config.lockstep_timeout_s:g} s")
+                        raise TimeoutError(
+                            f"replay --lockstep: no final drape/fine for generation {generation} "
+                            f"within {config.lockstep_timeout_s:g} s"
+                        )
                     cv.wait(min(left, 0.1))
 
         while True:

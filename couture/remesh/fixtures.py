@@ -33,7 +33,9 @@ def rectangle_panel(name: str, w: float, h: float, per_edge=20, *, x0: float = 0
     """Rectangle with segments 'bottom', 'right', 'top', 'left'."""
     P, c = polyline(rect_corners(w, h, x0, y0), per_edge)
     k = len(P)
-    segs = [Segment(nm, c[i], c[(i + 1) % 4] if i < 3 else 0) for i, nm in enumerate(["bottom", "right", "top", "left"])]
+    segs = [
+        Segment(nm, c[i], c[(i + 1) % 4] if i < 3 else 0) for i, nm in enumerate(["bottom", "right", "top", "left"])
+    ]
     del k
     return Panel(name, P, segments=segs)
 

@@ -127,9 +127,7 @@ class RemeshResult:
             vals += [1.0 - lp.chain_t, lp.chain_t]
             row0 += c
             col0 += k
-        m = sp.csr_matrix(
-            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(row0, col0)
-        )
+        m = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(row0, col0))
         m.eliminate_zeros()
         return m
 
@@ -407,8 +405,13 @@ def mesh_pattern(
     tri_panel = np.concatenate(tri_panel_parts)
     x0 = _place(drafted, X, vertex_panel)
     mesh = GarmentMesh(
-        X=X, tris=tris, x0=x0, tri_panel=tri_panel, panel_names=[p.name for p in drafted.panels],
-        level=level, generation=generation,
+        X=X,
+        tris=tris,
+        x0=x0,
+        tri_panel=tri_panel,
+        panel_names=[p.name for p in drafted.panels],
+        level=level,
+        generation=generation,
     )
     result = RemeshResult(mesh=mesh, loops=loops, panel_vertices=panel_vertices, vertex_panel=vertex_panel)
     t_place = time.perf_counter()

@@ -113,8 +113,10 @@ def build_coordinates(result: RemeshResult, method: str = "pmvc") -> PsiCoordina
             vals.append(Wd[r, c])
         b_off += nb
     W = sp.csr_matrix(
-        (np.concatenate(vals) if vals else np.zeros(0), (np.concatenate(rows) if rows else np.zeros(0, int),
-                                                         np.concatenate(cols) if cols else np.zeros(0, int))),
+        (
+            np.concatenate(vals) if vals else np.zeros(0),
+            (np.concatenate(rows) if rows else np.zeros(0, int), np.concatenate(cols) if cols else np.zeros(0, int)),
+        ),
         shape=(len(interior), len(boundary)),
     )
     # L: polyline -> all vertices, rows in mesh vertex order
@@ -131,8 +133,14 @@ def build_coordinates(result: RemeshResult, method: str = "pmvc") -> PsiCoordina
     offsets = np.cumsum([0] + [lp.n_poly for lp in result.loops])
     keys = [(mesh.panel_names[lp.panel], lp.loop) for lp in result.loops]
     return PsiCoordinates(
-        L=L, W=W, boundary=boundary, interior=interior, loop_keys=keys, loop_offsets=offsets,
-        method=method, precompute_s=time.perf_counter() - t0,
+        L=L,
+        W=W,
+        boundary=boundary,
+        interior=interior,
+        loop_keys=keys,
+        loop_offsets=offsets,
+        method=method,
+        precompute_s=time.perf_counter() - t0,
     )
 
 

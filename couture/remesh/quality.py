@@ -55,8 +55,9 @@ def boundary_edges(tris: np.ndarray) -> np.ndarray:
     return np.column_stack([T[t, (i + 1) % 3], T[t, (i + 2) % 3]])
 
 
-def flip_to_delaunay(X: np.ndarray, tris: np.ndarray, fixed_edges: np.ndarray | None = None,
-                     *, max_passes: int = 100) -> np.ndarray:
+def flip_to_delaunay(
+    X: np.ndarray, tris: np.ndarray, fixed_edges: np.ndarray | None = None, *, max_passes: int = 100
+) -> np.ndarray:
     """Delaunay edge flips (Lawson) with positions kept; returns new triangles (m, 3), int32, CCW.
 
     Boundary edges are never flipped (they have one triangle); ``fixed_edges``
@@ -86,8 +87,9 @@ class QualityReport:
     needs_remesh: bool
 
 
-def improve(X: np.ndarray, tris: np.ndarray, fixed_edges: np.ndarray | None = None,
-            *, threshold: float = REMESH_QUALITY) -> tuple[np.ndarray, QualityReport]:
+def improve(
+    X: np.ndarray, tris: np.ndarray, fixed_edges: np.ndarray | None = None, *, threshold: float = REMESH_QUALITY
+) -> tuple[np.ndarray, QualityReport]:
     """Delaunay smoothing, then the verdict: (triangles, report); ``needs_remesh``
     when the worst element is still below ``threshold`` (or inverted)."""
     q0 = triangle_quality(X, tris)

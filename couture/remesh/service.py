@@ -44,9 +44,9 @@ LEVELS = ("coarse", "fine")
 
 def structure_key(drafted: DraftedPattern) -> tuple:
     """What must stay equal for a mesh to follow a pattern edit."""
-    return tuple(
-        (p.name, len(p.outline), tuple(len(h) for h in p.holes)) for p in drafted.panels
-    ) + tuple((s.a_panel, s.a_segment, s.b_panel, s.b_segment) for s in drafted.seams)
+    return tuple((p.name, len(p.outline), tuple(len(h) for h in p.holes)) for p in drafted.panels) + tuple(
+        (s.a_panel, s.a_segment, s.b_panel, s.b_segment) for s in drafted.seams
+    )
 
 
 @dataclass
@@ -152,16 +152,29 @@ class RemeshService:
             up = self._new(level, drafted, st.target, generation)
             if st.last_x is not None:
                 new = up.mesh
-                new.x0 = transfer_state(old.X, old.tris, st.last_x, new.X,
-                                        old_tri_panel=old.tri_panel,
-                                        new_vertex_panel=self.levels[level].result.vertex_panel)
+                new.x0 = transfer_state(
+                    old.X,
+                    old.tris,
+                    st.last_x,
+                    new.X,
+                    old_tri_panel=old.tri_panel,
+                    new_vertex_panel=self.levels[level].result.vertex_panel,
+                )
             up.how = "remeshed"
             return up
         x0 = st.last_x if st.last_x is not None else _place(drafted, X, st.result.vertex_panel)
         mesh = GarmentMesh(
-            X=X, tris=tris, x0=x0, tri_panel=old.tri_panel, panel_names=old.panel_names,
-            seam_emitters=old.seam_emitters, seam_edges=old.seam_edges, seam_weights=old.seam_weights,
-            pinned=old.pinned, level=level, generation=generation,
+            X=X,
+            tris=tris,
+            x0=x0,
+            tri_panel=old.tri_panel,
+            panel_names=old.panel_names,
+            seam_emitters=old.seam_emitters,
+            seam_edges=old.seam_edges,
+            seam_weights=old.seam_weights,
+            pinned=old.pinned,
+            level=level,
+            generation=generation,
         )
         changed_topology = not np.array_equal(tris, old.tris)
         st.mesh = mesh
@@ -190,4 +203,3 @@ class RemeshService:
         for st in list(self.levels.values()):
             with self._lock:
                 self._coords(st)
-

@@ -19,8 +19,15 @@ from couture.mesh import GarmentMesh
 from couture.remesh import kernels
 
 
-def locate_points(X: np.ndarray, tris: np.ndarray, P: np.ndarray, *, tri_group: np.ndarray | None = None,
-                  point_group: np.ndarray | None = None, tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray]:
+def locate_points(
+    X: np.ndarray,
+    tris: np.ndarray,
+    P: np.ndarray,
+    *,
+    tri_group: np.ndarray | None = None,
+    point_group: np.ndarray | None = None,
+    tol: float = 1e-10,
+) -> tuple[np.ndarray, np.ndarray]:
     """Containing (or nearest) triangle of each point and its barycentrics.
 
     Returns (tri (p,) int64, bary (p, 3) float64); bary is clamped to the
@@ -79,8 +86,15 @@ def apply_map(tris: np.ndarray, tri: np.ndarray, bary: np.ndarray, field: np.nda
     return (field[T] * b).sum(axis=1)
 
 
-def transfer_state(old_X: np.ndarray, old_tris: np.ndarray, old_fields, new_X: np.ndarray, *,
-                   old_tri_panel: np.ndarray | None = None, new_vertex_panel: np.ndarray | None = None):
+def transfer_state(
+    old_X: np.ndarray,
+    old_tris: np.ndarray,
+    old_fields,
+    new_X: np.ndarray,
+    *,
+    old_tri_panel: np.ndarray | None = None,
+    new_vertex_panel: np.ndarray | None = None,
+):
     """Carry per-vertex fields from an old mesh to new vertices by barycentric
     interpolation in the 2D rest domain.
 

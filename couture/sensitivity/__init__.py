@@ -21,7 +21,16 @@ from .gmls import GMLSCache, gmls_coefficients
 from .predictor import Prediction, Predictor
 
 __all__ = [
-    "DragResult", "FactorInfo", "GMLSCache", "Prediction", "Predictor", "SensitivityFactor",
-    "drag_to_param", "find_null_modes", "gmls_coefficients", "length_scale",
-    "project_jacobian", "rigid_modes",
+    "DragResult",
+    "FactorInfo",
+    "GMLSCache",
+    "Prediction",
+    "Predictor",
+    "SensitivityFactor",
+    "drag_to_param",
+    "find_null_modes",
+    "gmls_coefficients",
+    "length_scale",
+    "project_jacobian",
+    "rigid_modes",
 ]

@@ -53,6 +53,7 @@ else:
         from couture.solvers.linalg import available_backends as _available_backends
         from couture.solvers.linalg import factorize as _solvers_factorize
     except Exception:  # pragma: no cover - solvers package not importable
+
         class FactorizationError(RuntimeError):
             pass
 
@@ -64,8 +65,9 @@ class _SpluFactor:
 
     def __init__(self, A):
         try:
-            self._lu = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                                 options={"SymmetricMode": True})
+            self._lu = spla.splu(
+                sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}
+            )
         except RuntimeError as e:
             raise FactorizationError(str(e)) from e
         d = self._lu.U.diagonal()
@@ -208,8 +210,9 @@ def contact_curvature(model: ClothModel, x: np.ndarray, h: float = 1e-6) -> sp.c
     r = 3 * act[:, None, None] + np.arange(3)[None, :, None]
     c = 3 * act[:, None, None] + np.arange(3)[None, None, :]
     n3 = 3 * model.n
-    return sp.csr_matrix((blk.ravel(), (np.broadcast_to(r, blk.shape).ravel(), np.broadcast_to(c, blk.shape).ravel())),
-                         shape=(n3, n3))
+    return sp.csr_matrix(
+        (blk.ravel(), (np.broadcast_to(r, blk.shape).ravel(), np.broadcast_to(c, blk.shape).ravel())), shape=(n3, n3)
+    )
 
 
 def find_null_modes(K: sp.spmatrix, x: np.ndarray, tol: float = 1e-8) -> np.ndarray:
@@ -239,9 +242,21 @@ class SensitivityFactor:
     factorization and a handful of back-substitutions (``info.refactor_s``).
     """
 
-    def __init__(self, model: ClothModel, x_eq: np.ndarray, bend_floor: bool = True, *, exact_hessian: bool = True,
-                 floor_factor: float = 1e-4, length: float | None = None, singular_tol: float = 1e-10,
-                 null_tol: float = 1e-8, check: bool = True, backend: str = "auto", seed: int = 0):
+    def __init__(
+        self,
+        model: ClothModel,
+        x_eq: np.ndarray,
+        bend_floor: bool = True,
+        *,
+        exact_hessian: bool = True,
+        floor_factor: float = 1e-4,
+        length: float | None = None,
+        singular_tol: float = 1e-10,
+        null_tol: float = 1e-8,
+        check: bool = True,
+        backend: str = "auto",
+        seed: int = 0,
+    ):
         t0 = time.perf_counter()
         self.model = model
         self.x_eq = np.array(x_eq, dtype=np.float64, copy=True)
@@ -338,8 +353,11 @@ class SensitivityFactor:
         if not hasattr(self, "_fac"):
             raise FactorizationError("; ".join(reasons))
         if reasons:
-            info.fallback = "; ".join(reasons) + f" -> used +{info.bend_added:.3g} N m bending" + (
-                f", shift {info.shift:.3g} N/m" if info.shift else "")
+            info.fallback = (
+                "; ".join(reasons)
+                + f" -> used +{info.bend_added:.3g} N m bending"
+                + (f", shift {info.shift:.3g} N/m" if info.shift else "")
+            )
         info.refactor_s = time.perf_counter() - t0
         self.info = info
 

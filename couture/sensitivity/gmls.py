@@ -122,9 +122,19 @@ class GMLSCache:
     nearest the pointer.
     """
 
-    def __init__(self, n: int, *, max_bytes: int = 64 << 20, max_samples: int = 16, eps2: float = 1e-3,
-                 d_scale: float = 1.0, max_active: int = 6, dtype=np.float32, age_scale: float = 30.0,
-                 ridge: float = 1e-6):
+    def __init__(
+        self,
+        n: int,
+        *,
+        max_bytes: int = 64 << 20,
+        max_samples: int = 16,
+        eps2: float = 1e-3,
+        d_scale: float = 1.0,
+        max_active: int = 6,
+        dtype=np.float32,
+        age_scale: float = 30.0,
+        ridge: float = 1e-6,
+    ):
         self.n = int(n)
         self.max_bytes = int(max_bytes)
         self.max_samples = int(max_samples)
@@ -277,6 +287,7 @@ class GMLSCache:
         self._d_now = d
         dd = d - s.d
         out = np.empty(3 * self.n)
-        weighted_rows(self._A, np.array([s.row_x, s.rows_s[0], s.rows_s[1]], np.int64),
-                      np.array([1.0, dd[0], dd[1]]), out)
+        weighted_rows(
+            self._A, np.array([s.row_x, s.rows_s[0], s.rows_s[1]], np.int64), np.array([1.0, dd[0], dd[1]]), out
+        )
         return out.reshape(self.n, 3)

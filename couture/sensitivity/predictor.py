@@ -65,16 +65,33 @@ class Predictor:
     ``refactor`` and ``add_sample`` may run in a worker thread while ``drag``
     runs at pointer rate."""
 
-    def __init__(self, *, method: str = "gmls", bend_floor: bool = True, cache_bytes: int = 64 << 20,
-                 cache_samples: int = 16, eps2: float = 1e-3, d_scale: float = 1.0, max_active: int = 6,
-                 dtype=np.float32, error_estimate: bool = True, model_at=default_model_at,
-                 factor_kwargs: dict | None = None):
+    def __init__(
+        self,
+        *,
+        method: str = "gmls",
+        bend_floor: bool = True,
+        cache_bytes: int = 64 << 20,
+        cache_samples: int = 16,
+        eps2: float = 1e-3,
+        d_scale: float = 1.0,
+        max_active: int = 6,
+        dtype=np.float32,
+        error_estimate: bool = True,
+        model_at=default_model_at,
+        factor_kwargs: dict | None = None,
+    ):
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}")
         self.method = method
         self.bend_floor = bend_floor
-        self.cache_kw = dict(max_bytes=cache_bytes, max_samples=cache_samples, eps2=eps2, d_scale=d_scale,
-                             max_active=max_active, dtype=dtype)
+        self.cache_kw = dict(
+            max_bytes=cache_bytes,
+            max_samples=cache_samples,
+            eps2=eps2,
+            d_scale=d_scale,
+            max_active=max_active,
+            dtype=dtype,
+        )
         self.error_estimate = error_estimate
         self.model_at = model_at
         self.factor_kwargs = factor_kwargs or {}

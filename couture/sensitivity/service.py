@@ -155,9 +155,15 @@ class SensitivityService:
     """See the module docstring. ``clock`` [s] is injectable for tests; ``count``
     receives counter names (the node adds them to its status)."""
 
-    def __init__(self, config: SensitivityConfig | None = None, *, predictor: Predictor | None = None,
-                 solver: Solver | None = None, clock: Callable[[], float] = time.monotonic,
-                 count: Callable[[str], object] = lambda name: None) -> None:
+    def __init__(
+        self,
+        config: SensitivityConfig | None = None,
+        *,
+        predictor: Predictor | None = None,
+        solver: Solver | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        count: Callable[[str], object] = lambda name: None,
+    ) -> None:
         self.config = config or SensitivityConfig()
         self.count = count
         """called with a counter's name on events worth counting ('insensitive_drags')"""
@@ -179,8 +185,9 @@ class SensitivityService:
         """A ``pattern``; returns the meshes that waited for it (to :meth:`take`)."""
         return self.matcher.add_design(generation, design, design_id)
 
-    def offer_mesh(self, generation: int, mesh_generation: int, mesh: GarmentMesh,
-                   design_id: str = "") -> MeshOutcome[GarmentMesh]:
+    def offer_mesh(
+        self, generation: int, mesh_generation: int, mesh: GarmentMesh, design_id: str = ""
+    ) -> MeshOutcome[GarmentMesh]:
         """A fine mesh: matched with its design (then :meth:`take` it), parked, or dropped."""
         return self.matcher.add_mesh(MeshArrival("fine", generation, mesh_generation, mesh, design_id))
 
@@ -190,7 +197,11 @@ class SensitivityService:
         model = ClothModel(m.payload, matched.design.fabric, scene_from_design(matched.design))
         with self._lock:
             self.mesh, self.mesh_generation, self.generation, self.model = (
-                m.payload, m.mesh_generation, m.generation, model)
+                m.payload,
+                m.mesh_generation,
+                m.generation,
+                model,
+            )
             self.design = matched.design
         log.info("mesh generation %d: %d vertices", m.mesh_generation, m.payload.n_vertices)
 
@@ -200,21 +211,31 @@ class SensitivityService:
         held, or a gesture is under way (it keeps the equilibrium it started from)."""
         with self._lock:
             model = self.model
-            if (model is None or mesh_generation != self.mesh_generation or x.shape != (model.n, 3)
-                    or self.gesture is not None):
+            if (
+                model is None
+                or mesh_generation != self.mesh_generation
+                or x.shape != (model.n, 3)
+                or self.gesture is not None
+            ):
                 return None
         self.predictor.set_equilibrium(model, np.asarray(x, dtype=np.float64))
         info = self.predictor.refactor()
-        log.info("refactored at mesh generation %d in %.0f ms (%s)", mesh_generation,
-                 1e3 * info.refactor_s, info.backend)
+        log.info(
+            "refactored at mesh generation %d in %.0f ms (%s)", mesh_generation, 1e3 * info.refactor_s, info.backend
+        )
         return info
 
     # -- gesture ----------------------------------------------------------------
     def press(self, press: Press) -> Gesture:
         """Open a gesture (it waits for its Ψ); replaces any open one."""
         with self._lock:
-            g = Gesture(press=press, mesh_generation=self.mesh_generation, generation=self.generation,
-                        design=self.design, last_motion=self.clock())
+            g = Gesture(
+                press=press,
+                mesh_generation=self.mesh_generation,
+                generation=self.generation,
+                design=self.design,
+                last_motion=self.clock(),
+            )
             self.gesture = g
         return g
 
@@ -238,8 +259,12 @@ class SensitivityService:
         if g.press.picked_vertex >= 0:
             g.s_point = S[g.press.picked_vertex, :, 0]
         g.ready = True
-        log.info("press %s on %s: columns in %.0f ms", edit_id, g.press.element or g.press.param,
-                 1e3 * (time.perf_counter() - t0))
+        log.info(
+            "press %s on %s: columns in %.0f ms",
+            edit_id,
+            g.press.element or g.press.param,
+            1e3 * (time.perf_counter() - t0),
+        )
         return g
 
     def moved(self, edit_id: str) -> bool:
@@ -290,15 +315,28 @@ class SensitivityService:
         return self._out(g, p, err, False)
 
     def _out(self, g: Gesture, p: Prediction, err: float | None, release: bool) -> PredictionOut:
-        return PredictionOut(edit_id=g.edit_id, generation=g.generation, mesh_generation=g.mesh_generation,
-                             x=p.x, d=p.d, method=p.method, error_estimate=err, release=release, prediction=p)
+        return PredictionOut(
+            edit_id=g.edit_id,
+            generation=g.generation,
+            mesh_generation=g.mesh_generation,
+            x=p.x,
+            d=p.d,
+            method=p.method,
+            error_estimate=err,
+            release=release,
+            prediction=p,
+        )
 
     def pause(self) -> Gesture | None:
         """The gesture to enrich now, if the pointer has rested ``pause_s`` at a
         design point not yet enriched (it is marked enriched: one solve per rest)."""
         g = self.gesture
-        if (g is None or not g.ready or self.clock() - g.last_motion <= self.config.pause_s
-                or (g.enriched_at is not None and np.array_equal(g.enriched_at, g.d))):
+        if (
+            g is None
+            or not g.ready
+            or self.clock() - g.last_motion <= self.config.pause_s
+            or (g.enriched_at is not None and np.array_equal(g.enriched_at, g.d))
+        ):
             return None
         g.enriched_at = g.d.copy()
         return g
@@ -314,9 +352,13 @@ class SensitivityService:
         d = g.d.copy()
         model_d = p.model_at(p.model, p.rest_at(d))
         cfg = self.config
-        r = self.solver.solve(model_d, p.last.x, tol=cfg.enrich_tol, max_seconds=cfg.enrich_seconds,
-                              callback=lambda *_: self.gesture is not g or
-                              self.clock() - g.last_motion < cfg.pause_s)
+        r = self.solver.solve(
+            model_d,
+            p.last.x,
+            tol=cfg.enrich_tol,
+            max_seconds=cfg.enrich_seconds,
+            callback=lambda *_: self.gesture is not g or self.clock() - g.last_motion < cfg.pause_s,
+        )
         if self.gesture is not g or not np.isfinite(r.residual):
             return None
         bar = p.last.error_estimate if np.isfinite(p.last.error_estimate) else np.inf
@@ -324,8 +366,12 @@ class SensitivityService:
             return None
         p.add_sample(d, r.x)
         g.enriched_at = d
-        log.info("cache sample at d=%s (residual %.1e) -> %d samples", np.round(d, 4), r.residual,
-                 len(p.cache) if p.cache is not None else 0)
+        log.info(
+            "cache sample at d=%s (residual %.1e) -> %d samples",
+            np.round(d, 4),
+            r.residual,
+            len(p.cache) if p.cache is not None else 0,
+        )
         pred = p.drag(d, error_estimate=False)
         return self._out(g, pred, float(r.residual), False)
 
@@ -347,5 +393,13 @@ class SensitivityService:
         return ReleaseOut(out, new, generation, uuid.uuid4().hex)
 
 
-__all__ = ["Gesture", "NoEquilibrium", "PatternError", "Press", "PredictionOut", "ReleaseOut",
-           "SensitivityConfig", "SensitivityService"]
+__all__ = [
+    "Gesture",
+    "NoEquilibrium",
+    "PatternError",
+    "Press",
+    "PredictionOut",
+    "ReleaseOut",
+    "SensitivityConfig",
+    "SensitivityService",
+]

@@ -36,5 +36,13 @@ def get_solver(name: str, **options) -> Solver:
     return factory(**options)
 
 
-__all__ = ["SOLVERS", "get_solver", "SolveResult", "Solver", "ProgressCallback",
-           "KineticSolver", "NewtonSolver", "VerletSolver"]
+__all__ = [
+    "SOLVERS",
+    "get_solver",
+    "SolveResult",
+    "Solver",
+    "ProgressCallback",
+    "KineticSolver",
+    "NewtonSolver",
+    "VerletSolver",
+]

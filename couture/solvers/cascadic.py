@@ -144,9 +144,18 @@ def _seam_pass(fine_model, x, free, alpha):
         x[var] = y
 
 
-def polish_prolongated(fine_model, x_fine: np.ndarray, coarse_model, x_coarse: np.ndarray,
-                       parent_tri: np.ndarray, bary: np.ndarray, *, seam_alpha: float = 1e-6,
-                       seam_hold: float = 1e-2, seam_rounds: int = 3) -> np.ndarray:
+def polish_prolongated(
+    fine_model,
+    x_fine: np.ndarray,
+    coarse_model,
+    x_coarse: np.ndarray,
+    parent_tri: np.ndarray,
+    bary: np.ndarray,
+    *,
+    seam_alpha: float = 1e-6,
+    seam_hold: float = 1e-2,
+    seam_rounds: int = 3,
+) -> np.ndarray:
     """A near-equilibrium fine start from the plain prolongation ``x_fine`` of the
     coarse drape ``x_coarse`` (fine vertex i in coarse triangle ``parent_tri[i]``
     with barycentric ``bary[i]``). Returns a new (n_fine, 3) array.
@@ -199,8 +208,9 @@ def polish_prolongated(fine_model, x_fine: np.ndarray, coarse_model, x_coarse: n
     x0 = np.asarray(x_fine, dtype=np.float64)
     x = x0.copy()
     free = np.asarray(fine_model.free, dtype=bool)
-    pen_t = _contact_targets(fine_model, coarse_model, np.asarray(x_coarse, np.float64),
-                             np.asarray(parent_tri), np.asarray(bary, np.float64))
+    pen_t = _contact_targets(
+        fine_model, coarse_model, np.asarray(x_coarse, np.float64), np.asarray(parent_tri), np.asarray(bary, np.float64)
+    )
     has_seams = bool(getattr(fine_model, "has_seams", False))
     if pen_t is not None:
         _contact_pass(fine_model, x, pen_t, free)

@@ -84,8 +84,10 @@ class Watch:
             self.mark = self.best
             self.mark_at = it
         elif it - self.mark_at >= self.window:
-            return (f"stalled: residual best {self.best:.3g} did not improve by "
-                    f"{100 * (1 - self.stall_factor):.0f}% over {self.window} iterations")
+            return (
+                f"stalled: residual best {self.best:.3g} did not improve by "
+                f"{100 * (1 - self.stall_factor):.0f}% over {self.window} iterations"
+            )
         return ""
 
 
@@ -174,12 +176,20 @@ def verdict(model, x: np.ndarray, tol: float) -> tuple[bool, float, str]:
     excess = float(excess_fn(x)) if excess_fn is not None else 0.0
     allowed = friction_allowance(model, x, tol)
     if excess > allowed:
-        return False, r, (f"friction: an anchor holds {excess:.3g} N beyond its static Coulomb limit "
-                          f"mu_s f_n (allowed {allowed:.3g} N): the cloth would slide there")
+        return (
+            False,
+            r,
+            (
+                f"friction: an anchor holds {excess:.3g} N beyond its static Coulomb limit "
+                f"mu_s f_n (allowed {allowed:.3g} N): the cloth would slide there"
+            ),
+        )
     return True, r, ""
 
 
-def finish(model, x: np.ndarray, r: float, loop_diag: str, best: BestState, tol: float) -> tuple[np.ndarray, float, bool, str]:
+def finish(
+    model, x: np.ndarray, r: float, loop_diag: str, best: BestState, tol: float
+) -> tuple[np.ndarray, float, bool, str]:
     """What a solver returns: its last state, or the best one seen when that is
     better (a stall, a cap, a divergence, a friction update that made things
     worse), with ``converged`` decided by ``verdict`` from fresh forces.

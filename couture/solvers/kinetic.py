@@ -227,11 +227,33 @@ class KineticSolver:
         x = pinned_positions(model, x0)
         v = np.zeros((n, 3)) if v0 is None else np.array(v0, dtype=np.float64)
         v[~free] = 0.0
-        stats: dict[str, Any] = dict(assembly_s=0.0, linear_solve_s=0.0, precond_s=0.0, solve_s=0.0, friction_s=0.0, steps=0,
-                     cg_iterations=0, cg_max=0, cg_unconverged=0, velocity_resets=0, rejected_steps=0, backtracks=0, clamped_steps=0,
-                     factorizations=0, ic_shift=0.0, ic_retries=0, jacobi_fallbacks=0, direct_failures=0,
-                     friction_checks=0, friction_excess_N=0.0, forced_steps=0, round_off_steps=0, dt_final=dt,
-                     dt_max_reached=dt, preconditioner=self.preconditioner)
+        stats: dict[str, Any] = dict(
+            assembly_s=0.0,
+            linear_solve_s=0.0,
+            precond_s=0.0,
+            solve_s=0.0,
+            friction_s=0.0,
+            steps=0,
+            cg_iterations=0,
+            cg_max=0,
+            cg_unconverged=0,
+            velocity_resets=0,
+            rejected_steps=0,
+            backtracks=0,
+            clamped_steps=0,
+            factorizations=0,
+            ic_shift=0.0,
+            ic_retries=0,
+            jacobi_fallbacks=0,
+            direct_failures=0,
+            friction_checks=0,
+            friction_excess_N=0.0,
+            forced_steps=0,
+            round_off_steps=0,
+            dt_final=dt,
+            dt_max_reached=dt,
+            preconditioner=self.preconditioner,
+        )
         history: list[tuple[float, float]] = []
         diag = ""
         converged = False
@@ -241,8 +263,16 @@ class KineticSolver:
         watch = Watch(self.stall_window)
 
         if not finite(x):
-            return SolveResult(x=np.nan_to_num(x), residual=float("inf"), iterations=0, wall_time=0.0, converged=False,
-                               method=self.name, diagnosis="diverged: non-finite initial positions", stats=stats)
+            return SolveResult(
+                x=np.nan_to_num(x),
+                residual=float("inf"),
+                iterations=0,
+                wall_time=0.0,
+                converged=False,
+                method=self.name,
+                diagnosis="diverged: non-finite initial positions",
+                stats=stats,
+            )
 
         best = BestState(model)
         ke_hist = [0.0, 0.0]
@@ -271,8 +301,7 @@ class KineticSolver:
             recent.append(r)
             # a crawl (the residual has not halved in crawl_window steps, near rest): a
             # garment sliding or turning on the body, which friction stops
-            crawling = (len(recent) > self.crawl_window and r > 0.5 * recent[-1 - self.crawl_window]
-                        and r < 1.0)
+            crawling = len(recent) > self.crawl_window and r > 0.5 * recent[-1 - self.crawl_window] and r < 1.0
             tf = time.perf_counter()
             if fric is None:
                 fric = FrictionSchedule(model, x, r, tol, self.friction_after, self.friction_every)
@@ -379,8 +408,12 @@ class KineticSolver:
                     # two states, so rank by the force residual (as Newton does)
                     if e_noise is None:
                         e_noise = energy_round_off(model, x, E)
-                    if (np.isfinite(E_new) and abs(E_new + ke_new - total0) <= e_noise and finite(f_new)
-                            and res_scale(x + alpha * step, f_new) < r):
+                    if (
+                        np.isfinite(E_new)
+                        and abs(E_new + ke_new - total0) <= e_noise
+                        and finite(f_new)
+                        and res_scale(x + alpha * step, f_new) < r
+                    ):
                         ok = True
                         stats["round_off_steps"] += 1
                         break
@@ -414,8 +447,7 @@ class KineticSolver:
                 diag = f"diverged: linear solve produced non-finite velocities at step {it}"
                 break
             if big > max_disp:
-                diag = (f"diverged: a vertex moved {big:.3g} m in one step "
-                        f"(limit {max_disp:.3g} m) at step {it}")
+                diag = f"diverged: a vertex moved {big:.3g} m in one step (limit {max_disp:.3g} m) at step {it}"
                 break
             dv_prev = dv
             v = v_new
@@ -449,5 +481,14 @@ class KineticSolver:
             stats["ic_retries"] = pre.retries
         x, r, converged, diag = finish(model, x, r, "" if converged else diag, best, tol)
         wall = time.perf_counter() - t_start
-        return SolveResult(x=x, residual=float(r), iterations=it, wall_time=wall, converged=converged,
-                           method=self.name, diagnosis=diag, history=history, stats=stats)
+        return SolveResult(
+            x=x,
+            residual=float(r),
+            iterations=it,
+            wall_time=wall,
+            converged=converged,
+            method=self.name,
+            diagnosis=diag,
+            history=history,
+            stats=stats,
+        )

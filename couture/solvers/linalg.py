@@ -89,7 +89,7 @@ class ReducedSystem:
         S.sort_indices()
         self.Ap = S.indptr.astype(np.int64)
         self.Ai = S.indices.astype(np.int64)
-        self.A_map = (S.data.astype(np.int64) - 1)
+        self.A_map = S.data.astype(np.int64) - 1
         rows = np.repeat(np.arange(self.nr), np.diff(S.indptr))
         diag_pos = np.nonzero(S.indices == rows)[0]
         if len(diag_pos) != self.nr:
@@ -168,9 +168,13 @@ def pcg(system: ReducedSystem, b: np.ndarray, x0: np.ndarray | None, pre: IC0 | 
     if pre is None:
         d = system.Ax[system.diag_pos]
         ds = 1.0 / np.sqrt(np.where(d > 0, d, 1.0))
-        it, rr = kernels.pcg_ic0(system.Ap, system.Ai, system.Ax, system.Lp, system.Li, np.zeros(1), ds, b, x, rtol, maxiter, False)
+        it, rr = kernels.pcg_ic0(
+            system.Ap, system.Ai, system.Ax, system.Lp, system.Li, np.zeros(1), ds, b, x, rtol, maxiter, False
+        )
     else:
-        it, rr = kernels.pcg_ic0(system.Ap, system.Ai, system.Ax, system.Lp, system.Li, pre.Lx, pre.dscale, b, x, rtol, maxiter, True)
+        it, rr = kernels.pcg_ic0(
+            system.Ap, system.Ai, system.Ax, system.Lp, system.Li, pre.Lx, pre.dscale, b, x, rtol, maxiter, True
+        )
     return x, int(it), float(rr)
 
 
@@ -220,8 +224,9 @@ class _SpluFactor(Factor):
 
     def refactor(self, A, *, expect_indefinite: bool = False):
         try:
-            self._lu = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                                 options={"SymmetricMode": True})
+            self._lu = spla.splu(
+                sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}
+            )
         except RuntimeError as e:  # exactly singular
             raise FactorizationError(str(e)) from e
         # SuperLU is an LU: a non-positive pivot means A is not SPD (needed for descent directions)
@@ -256,8 +261,11 @@ class _CholmodFactor(Factor):
 
         A = sp.csc_matrix(A)
         A.sort_indices()
-        if self._pattern is None or self._pattern[0].shape != A.indptr.shape or not (
-                np.array_equal(self._pattern[0], A.indptr) and np.array_equal(self._pattern[1], A.indices)):
+        if (
+            self._pattern is None
+            or self._pattern[0].shape != A.indptr.shape
+            or not (np.array_equal(self._pattern[0], A.indptr) and np.array_equal(self._pattern[1], A.indices))
+        ):
             self._analyze(A)
         try:
             self._f.cholesky_inplace(A)
@@ -279,11 +287,20 @@ class _PardisoFactor(Factor):
     analyse-and-factor (measured, bench/results/solver.json)."""
 
     backend = "pardiso"
-    _ERRORS = {-1: "input inconsistent", -2: "not enough memory", -3: "reordering problem",
-               -4: "zero or negative pivot: matrix not positive definite", -5: "unclassified internal error",
-               -6: "reordering failed", -7: "diagonal matrix is singular", -8: "32-bit integer overflow",
-               -9: "not enough memory for out-of-core", -10: "problems opening out-of-core files",
-               -11: "read/write problems with out-of-core data", -12: "wrong pardiso_64 call"}
+    _ERRORS = {
+        -1: "input inconsistent",
+        -2: "not enough memory",
+        -3: "reordering problem",
+        -4: "zero or negative pivot: matrix not positive definite",
+        -5: "unclassified internal error",
+        -6: "reordering failed",
+        -7: "diagonal matrix is singular",
+        -8: "32-bit integer overflow",
+        -9: "not enough memory for out-of-core",
+        -10: "problems opening out-of-core files",
+        -11: "read/write problems with out-of-core data",
+        -12: "wrong pardiso_64 call",
+    }
 
     single = False
     refine_rtol = 1e-10
@@ -329,14 +346,28 @@ class _PardisoFactor(Factor):
         bb = np.zeros(1, dt) if b is None else np.asfortranarray(b, dtype=dt)
         x = np.zeros_like(bb)
         err = ct.c_int32(0)
-        self._fn(self._pt.ctypes.data_as(ct.POINTER(ct.c_int64)), ct.byref(ct.c_int32(1)), ct.byref(ct.c_int32(1)),
-                 ct.byref(ct.c_int32(2)), ct.byref(ct.c_int32(phase)), ct.byref(ct.c_int32(self._n)),
-                 data.ctypes.data_as(f64), self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32),
-                 self._perm.ctypes.data_as(i32), ct.byref(ct.c_int32(nrhs)), self._iparm.ctypes.data_as(i32),
-                 ct.byref(ct.c_int32(0)), bb.ctypes.data_as(f64), x.ctypes.data_as(f64), ct.byref(err))
+        self._fn(
+            self._pt.ctypes.data_as(ct.POINTER(ct.c_int64)),
+            ct.byref(ct.c_int32(1)),
+            ct.byref(ct.c_int32(1)),
+            ct.byref(ct.c_int32(2)),
+            ct.byref(ct.c_int32(phase)),
+            ct.byref(ct.c_int32(self._n)),
+            data.ctypes.data_as(f64),
+            self._ia.ctypes.data_as(i32),
+            self._ja.ctypes.data_as(i32),
+            self._perm.ctypes.data_as(i32),
+            ct.byref(ct.c_int32(nrhs)),
+            self._iparm.ctypes.data_as(i32),
+            ct.byref(ct.c_int32(0)),
+            bb.ctypes.data_as(f64),
+            x.ctypes.data_as(f64),
+            ct.byref(err),
+        )
         if err.value != 0:
-            raise FactorizationError(f"PARDISO phase {phase}: error {err.value} "
-                                     f"({self._ERRORS.get(err.value, 'unknown')})")
+            raise FactorizationError(
+                f"PARDISO phase {phase}: error {err.value} ({self._ERRORS.get(err.value, 'unknown')})"
+            )
         return None if b is None else np.ascontiguousarray(x)
 
     def refactor(self, A, *, expect_indefinite: bool = False):
@@ -346,8 +377,11 @@ class _PardisoFactor(Factor):
         indefinite, e.g. a shifted true Hessian): then it raises at once and the
         object stays usable for the next matrix."""
         A = sp.csr_matrix(A)
-        if self._pattern is None or self._pattern[0].shape != A.indptr.shape or not (
-                np.array_equal(self._pattern[0], A.indptr) and np.array_equal(self._pattern[1], A.indices)):
+        if (
+            self._pattern is None
+            or self._pattern[0].shape != A.indptr.shape
+            or not (np.array_equal(self._pattern[0], A.indptr) and np.array_equal(self._pattern[1], A.indices))
+        ):
             A.sort_indices()
             rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
             up = A.indices >= rows
@@ -433,8 +467,7 @@ class _Pardiso32Factor(_PardisoFactor):
     single = True
 
 
-_BACKENDS = {"splu": _SpluFactor, "cholmod": _CholmodFactor, "pardiso": _PardisoFactor,
-             "pardiso32": _Pardiso32Factor}
+_BACKENDS = {"splu": _SpluFactor, "cholmod": _CholmodFactor, "pardiso": _PardisoFactor, "pardiso32": _Pardiso32Factor}
 
 
 def resolve_backend(backend: str = "auto", approximate: bool = False) -> str:
@@ -474,8 +507,9 @@ def time_backends(A: sp.spmatrix, repeats: int = 2) -> dict[str, dict[str, float
     return out
 
 
-def pcg_factor(A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray | None, factor: "Factor", rtol: float,
-               maxiter: int) -> tuple[np.ndarray, int, float]:
+def pcg_factor(
+    A: sp.csr_matrix, b: np.ndarray, x0: np.ndarray | None, factor: "Factor", rtol: float, maxiter: int
+) -> tuple[np.ndarray, int, float]:
     """CG on SPD ``A`` preconditioned by a direct factorization of a nearby matrix
     (an earlier step's ``M + dt² K``): exact for the matrix it was made from, so
     CG needs a handful of iterations while K drifts, and the expensive

@@ -131,14 +131,33 @@ class NewtonSolver:
         t_start = time.perf_counter()
         n = model.n
         x = pinned_positions(model, x0)
-        stats: dict[str, Any] = dict(assembly_s=0.0, linear_solve_s=0.0, factorizations=0, factorization_failures=0,
-                     backtracks=0, line_search_failures=0, shift_increases=0, energy_evals=0, projected_fallbacks=0, true_hessian_steps=0, backend=self.backend, steps=0,
-                     slope_steps=0)
+        stats: dict[str, Any] = dict(
+            assembly_s=0.0,
+            linear_solve_s=0.0,
+            factorizations=0,
+            factorization_failures=0,
+            backtracks=0,
+            line_search_failures=0,
+            shift_increases=0,
+            energy_evals=0,
+            projected_fallbacks=0,
+            true_hessian_steps=0,
+            backend=self.backend,
+            steps=0,
+            slope_steps=0,
+        )
         history: list[tuple[float, float]] = []
         if not finite(x):
-            return SolveResult(x=np.nan_to_num(x), residual=float("inf"), iterations=0, wall_time=0.0,
-                               converged=False, method=self.name, diagnosis="diverged: non-finite initial positions",
-                               stats=stats)
+            return SolveResult(
+                x=np.nan_to_num(x),
+                residual=float("inf"),
+                iterations=0,
+                wall_time=0.0,
+                converged=False,
+                method=self.name,
+                diagnosis="diverged: non-finite initial positions",
+                stats=stats,
+            )
         scale = float(np.linalg.norm(np.ptp(x, axis=0))) or 1.0
         max_step = self.max_step or 0.25 * scale
         h = self.h0
@@ -274,8 +293,9 @@ class NewtonSolver:
                         e_noise = energy_round_off(model, x, E)
                     if np.isfinite(E_try) and alpha * slope <= e_noise:
                         f_try = model.forces(x_try)
-                        if finite(f_try) and (abs(float(np.vdot(f_try, P))) <= 0.9 * slope
-                                              or res_scale(x_try, f_try) < r):
+                        if finite(f_try) and (
+                            abs(float(np.vdot(f_try, P))) <= 0.9 * slope or res_scale(x_try, f_try) < r
+                        ):
                             stats["slope_steps"] += 1
                             accepted = True
                             break
@@ -297,8 +317,10 @@ class NewtonSolver:
                     if h < self.h_min:
                         break
             if not accepted:
-                diag = (f"stalled: no descent step at iteration {it} even with Levenberg term M/h², "
-                        f"h = {h:.3g} s (residual {r:.3g})")
+                diag = (
+                    f"stalled: no descent step at iteration {it} even with Levenberg term M/h², "
+                    f"h = {h:.3g} s (residual {r:.3g})"
+                )
                 break
             # pseudo-transient continuation: (K + M/h²) p = f is one implicit Euler
             # step from rest of length h; lengthen h after full steps (towards pure
@@ -315,8 +337,16 @@ class NewtonSolver:
             elif alpha < 0.1:
                 h = max(h / 10.0, self.h_min)
             stats["true_hessian_steps"] += int(use_true)
-            log.debug("newton it %d: r %.3e E %.9e alpha %.3g h %.3g true %s |P| %.3g", it, r, E, alpha, h,
-                      use_true, float(np.max(np.abs(P))))
+            log.debug(
+                "newton it %d: r %.3e E %.9e alpha %.3g h %.3g true %s |P| %.3g",
+                it,
+                r,
+                E,
+                alpha,
+                h,
+                use_true,
+                float(np.max(np.abs(P))),
+            )
             x = x_try
             it += 1
             ta = time.perf_counter()
@@ -328,8 +358,9 @@ class NewtonSolver:
             # turning on the body, a fold rolling) that the projected Hessian, stiffer than
             # the true one along it, follows in tiny steps: turn to the true Hessian, and
             # let friction hold the cloth where it is if the scene has friction
-            crawling = (len(recent) > self.crawl_window and r > 0.5 * recent[-1 - self.crawl_window]
-                        and r < self.true_until)
+            crawling = (
+                len(recent) > self.crawl_window and r > 0.5 * recent[-1 - self.crawl_window] and r < self.true_until
+            )
             if crawling and not true_mode:
                 true_mode = True
                 stats["crawl_switches"] = stats.get("crawl_switches", 0) + 1
@@ -346,5 +377,14 @@ class NewtonSolver:
         self._factor = factor
         x, r, converged, diag = finish(model, x, r, "" if converged else diag, best, tol)
         wall = time.perf_counter() - t_start
-        return SolveResult(x=x, residual=float(r), iterations=it, wall_time=wall, converged=converged,
-                           method=self.name, diagnosis=diag, history=history, stats=stats)
+        return SolveResult(
+            x=x,
+            residual=float(r),
+            iterations=it,
+            wall_time=wall,
+            converged=converged,
+            method=self.name,
+            diagnosis=diag,
+            history=history,
+            stats=stats,
+        )

@@ -40,8 +40,7 @@ def scene_from_design(design: Design) -> Scene:
     """The terms a design's scene needs (absent terms are never built)."""
     flags = design.scene
     body = "mannequin" if flags.body else None
-    return Scene(body=body, gravity=flags.gravity, seams=flags.seams,
-                 friction=bool(flags.friction and flags.body))
+    return Scene(body=body, gravity=flags.gravity, seams=flags.seams, friction=bool(flags.friction and flags.body))
 
 
 def same_vertices(a: GarmentMesh, b: GarmentMesh) -> bool:
@@ -107,8 +106,9 @@ class SolveService:
         Returns the meshes that waited for it, to :meth:`take`."""
         return self.matcher.add_design(generation, design, design_id)
 
-    def offer_mesh(self, level: str, generation: int, mesh_generation: int, incoming: IncomingMesh,
-                   design_id: str = "") -> MeshOutcome[IncomingMesh]:
+    def offer_mesh(
+        self, level: str, generation: int, mesh_generation: int, incoming: IncomingMesh, design_id: str = ""
+    ) -> MeshOutcome[IncomingMesh]:
         """A ``mesh/<level>``: matched with its design (then :meth:`take` it),
         parked until its pattern arrives, or dropped as stale or a repeat."""
         return self.matcher.add_mesh(MeshArrival(level, generation, mesh_generation, incoming, design_id))
@@ -132,8 +132,13 @@ class SolveService:
                 lm.converged = False
         return changed
 
-    def set_mesh(self, level: str, mesh: GarmentMesh, mesh_generation: int,
-                 prolongation: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+    def set_mesh(
+        self,
+        level: str,
+        mesh: GarmentMesh,
+        mesh_generation: int,
+        prolongation: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> None:
         if self.design is None:
             raise RuntimeError("no design yet (pattern message) to take fabric and scene from")
         old = self.levels.get(level)
@@ -157,8 +162,12 @@ class SolveService:
         self.predictions[level] = (mesh_generation, np.asarray(x, dtype=np.float64))
 
     def ready(self) -> bool:
-        return self.design is not None and "coarse" in self.levels and "fine" in self.levels and (
-            self.levels["coarse"].mesh.generation == self.levels["fine"].mesh.generation)
+        return (
+            self.design is not None
+            and "coarse" in self.levels
+            and "fine" in self.levels
+            and (self.levels["coarse"].mesh.generation == self.levels["fine"].mesh.generation)
+        )
 
     # -- work
     def _warm(self, level: str, coarse_x: np.ndarray | None) -> tuple[np.ndarray, str]:
@@ -201,8 +210,9 @@ class SolveService:
                     on_progress(level, it, x, res)
                 return False
 
-            result = self.solver.solve(lm.model, x0, tol=self.tol[level],
-                                       max_seconds=self.max_seconds[level], callback=cb)
+            result = self.solver.solve(
+                lm.model, x0, tol=self.tol[level], max_seconds=self.max_seconds[level], callback=cb
+            )
             lm.x = result.x
             lm.converged = result.converged
             self.predictions.pop(level, None)

@@ -103,8 +103,15 @@ class SpringModel:
 class VerletSolver:
     name = "verlet"
 
-    def __init__(self, *, keep: float = 0.99, dt: float | None = None, stretch_iters: int = 8,
-                 seam_iters: int = 4, check_every: int = 5):
+    def __init__(
+        self,
+        *,
+        keep: float = 0.99,
+        dt: float | None = None,
+        stretch_iters: int = 8,
+        seam_iters: int = 4,
+        check_every: int = 5,
+    ):
         """keep: velocity retained per step (1 - viscous damping); dt [s]: time
         step (None: 0.5 of the bending springs' explicit bound, at most 20 ms);
         stretch_iters, seam_iters: projection sweeps per step; check_every: steps
@@ -135,12 +142,20 @@ class VerletSolver:
         t_start = time.perf_counter()
         sm = self.spring_model(model)
         x = pinned_positions(model, x0)
-        stats = dict(assembly_s=0.0, linear_solve_s=0.0, projection_s=0.0, steps=0, velocity_resets=0,
-                     own_residual=float("nan"))
+        stats = dict(
+            assembly_s=0.0, linear_solve_s=0.0, projection_s=0.0, steps=0, velocity_resets=0, own_residual=float("nan")
+        )
         if not finite(x):
-            return SolveResult(x=np.nan_to_num(x), residual=float("inf"), iterations=0, wall_time=0.0,
-                               converged=False, method=self.name, diagnosis="diverged: non-finite initial positions",
-                               stats=stats)
+            return SolveResult(
+                x=np.nan_to_num(x),
+                residual=float("inf"),
+                iterations=0,
+                wall_time=0.0,
+                converged=False,
+                method=self.name,
+                diagnosis="diverged: non-finite initial positions",
+                stats=stats,
+            )
         mass = np.maximum(np.asarray(model.mass, np.float64), 1e-300)
         free = sm.free
         inv_m = np.where(free, 1.0 / mass, 0.0)
@@ -218,8 +233,19 @@ class VerletSolver:
         if converged:
             # stationary in its own spring model, not an equilibrium of the cloth model the
             # others solve: say what it converged to, in the measure they all report
-            diag = (f"converged to its own mass-spring equilibrium (own residual {own:.3g}); "
-                    f"cloth-model relative residual {r:.3g}")
+            diag = (
+                f"converged to its own mass-spring equilibrium (own residual {own:.3g}); "
+                f"cloth-model relative residual {r:.3g}"
+            )
         wall = time.perf_counter() - t_start
-        return SolveResult(x=x, residual=r if np.isfinite(r) else float("inf"), iterations=it, wall_time=wall,
-                           converged=converged, method=self.name, diagnosis=diag, history=history, stats=stats)
+        return SolveResult(
+            x=x,
+            residual=r if np.isfinite(r) else float("inf"),
+            iterations=it,
+            wall_time=wall,
+            converged=converged,
+            method=self.name,
+            diagnosis=diag,
+            history=history,
+            stats=stats,
+        )

@@ -20,8 +20,9 @@ from couture.ui.gestures import Edit
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m couture.ui", description=__doc__)
     ap.add_argument("--host", default="127.0.0.1")
-    ap.add_argument("--port", type=int, default=8080,
-                    help="the page; the 3D view is port + 1, the pattern view port + 2")
+    ap.add_argument(
+        "--port", type=int, default=8080, help="the page; the 3D view is port + 1, the pattern view port + 2"
+    )
     ap.add_argument("--vertices", type=int, default=3000, help="demo sheet size")
     args = ap.parse_args(argv)
 

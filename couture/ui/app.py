@@ -109,8 +109,9 @@ class CoutureUI:
         """Start the servers and the threads; returns the page URL."""
         c = self.config
         self.server3d = viser.ViserServer(host=c.host, port=c.port + 1, label="couture 3D", verbose=False)
-        self.server2d = viser.ViserServer(host=c.host, port=self.server3d.get_port() + 1, label="couture pattern",
-                                          verbose=False)
+        self.server2d = viser.ViserServer(
+            host=c.host, port=self.server3d.get_port() + 1, label="couture pattern", verbose=False
+        )
         for s in (self.server3d, self.server2d):
             s.gui.configure_theme(show_share_button=False, control_width="medium", show_logo=False)
         # each view's panel is docked on the page's middle line, so no panel
@@ -122,31 +123,52 @@ class CoutureUI:
         self.view3d = DrapeView(self.server3d, n_bands=c.n_bands, show_body=c.show_body)
         self.view2d = PatternView(self.server2d)
         self.view3d.set_fabric(self.design.fabric)
-        self.controls = Controls(self.server3d.gui, lambda: self.design, on_design=self.commit,
-                                 on_solver=self.select_solver, on_field=self._show_field)
+        self.controls = Controls(
+            self.server3d.gui,
+            lambda: self.design,
+            on_design=self.commit,
+            on_solver=self.select_solver,
+            on_field=self._show_field,
+        )
         self.status = StatusPanel(self.server3d.gui)
-        self.session = SessionPanel(self.server3d.gui, c.export_dir, pattern=lambda: self.pattern,
-                                    drape=lambda: (self.view3d.mesh, self.view3d.x),
-                                    on_record=lambda on: self.on_record and self.on_record(on))
+        self.session = SessionPanel(
+            self.server3d.gui,
+            c.export_dir,
+            pattern=lambda: self.pattern,
+            drape=lambda: (self.view3d.mesh, self.view3d.x),
+            on_record=lambda on: self.on_record and self.on_record(on),
+        )
         self.tools = PatternTools(self.server2d.gui, self.view2d, lambda: self.design, self.commit, self._pick)
-        self.gestures = Gestures(lambda: self.design, self.commit, restore_pattern=self.view2d.restore,
-                                 say=self.tools.say, tug_option=lambda: self.controls.tug_option,
-                                 on_edit=lambda edit: self.on_edit and self.on_edit(edit))
+        self.gestures = Gestures(
+            lambda: self.design,
+            self.commit,
+            restore_pattern=self.view2d.restore,
+            say=self.tools.say,
+            tug_option=lambda: self.controls.tug_option,
+            on_edit=lambda edit: self.on_edit and self.on_edit(edit),
+        )
         self.view3d.on_tug = self.gestures.tug
         self.view3d.on_pick = self._pick
         self.view2d.on_handle_drag = self.gestures.handle_drag
         self.view2d.on_click = self.tools.click
-        self.renderer = DrapeRenderer(self.view3d, self.status, self.controls,
-                                      meshes=lambda: list(self.meshes.values()),
-                                      selected_solver=lambda: self.selected_solver, max_fps=c.max_fps)
-        self.drafter = Drafter(show_pattern=self.show_pattern, pattern=lambda: self.pattern,
-                               show_handles=self._show_handles)
+        self.renderer = DrapeRenderer(
+            self.view3d,
+            self.status,
+            self.controls,
+            meshes=lambda: list(self.meshes.values()),
+            selected_solver=lambda: self.selected_solver,
+            max_fps=c.max_fps,
+        )
+        self.drafter = Drafter(
+            show_pattern=self.show_pattern, pattern=lambda: self.pattern, show_handles=self._show_handles
+        )
         self.page = PageServer(c.host, c.port, self.server3d.get_port(), self.server2d.get_port())
         workers = [(self.renderer.run, "couture-render")]
         if c.draft_locally:
             workers.append((self.drafter.run, "couture-draft"))
-        self._threads = [threading.Thread(target=run, args=(self._stop,), name=name, daemon=True)
-                         for run, name in workers]
+        self._threads = [
+            threading.Thread(target=run, args=(self._stop,), name=name, daemon=True) for run, name in workers
+        ]
         for t in self._threads:
             t.start()
         self.drafter.slot.put(self.design)
@@ -210,14 +232,39 @@ class CoutureUI:
             self.view3d.set_mesh(mesh)
             self.view2d.set_mesh(mesh)
 
-    def show_drape(self, x: np.ndarray, level: str, method: str = "", residual: float = float("nan"),
-                   error_estimate: float | None = None, *, generation: int = 0, tag: Any = None,
-                   solver: str = "", converged: bool | None = None, diagnosis: str = "", final: bool = True,
-                   edit_id: str = "") -> None:
+    def show_drape(
+        self,
+        x: np.ndarray,
+        level: str,
+        method: str = "",
+        residual: float = float("nan"),
+        error_estimate: float | None = None,
+        *,
+        generation: int = 0,
+        tag: Any = None,
+        solver: str = "",
+        converged: bool | None = None,
+        diagnosis: str = "",
+        final: bool = True,
+        edit_id: str = "",
+    ) -> None:
         """Store a drape to render; returns at once (the newest one wins)."""
-        self.renderer.slot.put(DrapeFrame(np.asarray(x), level, method, residual, error_estimate, generation, tag,
-                                        solver=solver, converged=converged, diagnosis=diagnosis, final=final,
-                                        edit_id=edit_id))
+        self.renderer.slot.put(
+            DrapeFrame(
+                np.asarray(x),
+                level,
+                method,
+                residual,
+                error_estimate,
+                generation,
+                tag,
+                solver=solver,
+                converged=converged,
+                diagnosis=diagnosis,
+                final=final,
+                edit_id=edit_id,
+            )
+        )
 
     def show_pattern(self, pattern: DraftedPattern) -> None:
         self.pattern = pattern
@@ -228,8 +275,9 @@ class CoutureUI:
         A dead node stays listed as dead; its last drape stays on screen."""
         self.status.set_live_nodes(nodes)
 
-    def set_node_status(self, name: str, *, kind: str = "", state: str = "", rates: dict | None = None,
-                        last_error: str = "") -> None:
+    def set_node_status(
+        self, name: str, *, kind: str = "", state: str = "", rates: dict | None = None, last_error: str = ""
+    ) -> None:
         self.status.set_node_status(name, kind=kind, state=state, rates=rates, last_error=last_error)
 
     def set_status_notes(self, notes: list[str]) -> None:

@@ -67,8 +67,9 @@ def lame_membrane(stretch_stiffness: float, poisson_ratio: float) -> tuple[float
     return E * nu / (1.0 - nu * nu), E / (2.0 * (1.0 + nu))
 
 
-def principal_stress(X: np.ndarray, x: np.ndarray, tris: np.ndarray,
-                     stretch_stiffness: float, poisson_ratio: float = 0.3) -> np.ndarray:
+def principal_stress(
+    X: np.ndarray, x: np.ndarray, tris: np.ndarray, stretch_stiffness: float, poisson_ratio: float = 0.3
+) -> np.ndarray:
     """Principal membrane tensions [N/m] per triangle, shape (m, 2), ascending.
 
     St. Venant-Kirchhoff: second Piola-Kirchhoff S = λ tr(E) I + 2 μ E, pushed
@@ -105,8 +106,9 @@ def rest_vertex_areas(X: np.ndarray, tris: np.ndarray) -> np.ndarray:
     return out
 
 
-def contact_pressure(X: np.ndarray, tris: np.ndarray, signed_distance: np.ndarray,
-                     offset: float = 0.01, contact_stiffness: float = 100.0) -> np.ndarray:
+def contact_pressure(
+    X: np.ndarray, tris: np.ndarray, signed_distance: np.ndarray, offset: float = 0.01, contact_stiffness: float = 100.0
+) -> np.ndarray:
     """Body-contact pressure per vertex [Pa], shape (n,).
 
     The cloth model's contact is a penalty spring per vertex pushing it out to
@@ -147,16 +149,30 @@ class BodyDistance:
 
 # Control points of perceptually ordered maps (sampled from matplotlib's
 # 'viridis' and a blue-white-red diverging map), RGB in 0..1.
-_VIRIDIS = np.array([
-    [0.267, 0.005, 0.329], [0.283, 0.141, 0.458], [0.254, 0.265, 0.530],
-    [0.207, 0.372, 0.553], [0.164, 0.471, 0.558], [0.128, 0.567, 0.551],
-    [0.135, 0.659, 0.518], [0.267, 0.749, 0.441], [0.478, 0.821, 0.318],
-    [0.741, 0.873, 0.150], [0.993, 0.906, 0.144],
-])
-_DIVERGING = np.array([
-    [0.230, 0.299, 0.754], [0.552, 0.690, 0.996], [0.866, 0.866, 0.866],
-    [0.958, 0.603, 0.482], [0.706, 0.016, 0.150],
-])
+_VIRIDIS = np.array(
+    [
+        [0.267, 0.005, 0.329],
+        [0.283, 0.141, 0.458],
+        [0.254, 0.265, 0.530],
+        [0.207, 0.372, 0.553],
+        [0.164, 0.471, 0.558],
+        [0.128, 0.567, 0.551],
+        [0.135, 0.659, 0.518],
+        [0.267, 0.749, 0.441],
+        [0.478, 0.821, 0.318],
+        [0.741, 0.873, 0.150],
+        [0.993, 0.906, 0.144],
+    ]
+)
+_DIVERGING = np.array(
+    [
+        [0.230, 0.299, 0.754],
+        [0.552, 0.690, 0.996],
+        [0.866, 0.866, 0.866],
+        [0.958, 0.603, 0.482],
+        [0.706, 0.016, 0.150],
+    ]
+)
 
 
 def _interp(table: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -204,7 +220,7 @@ class ColorScale:
             rows.append(
                 f'<div style="display:flex;align-items:center;gap:6px;font-size:11px;line-height:14px">'
                 f'<span style="display:inline-block;width:18px;height:12px;background:rgb({r},{g},{bl})"></span>'
-                f'<span>{_fmt(e[b])} … {_fmt(e[b + 1])}</span></div>'
+                f"<span>{_fmt(e[b])} … {_fmt(e[b + 1])}</span></div>"
             )
         head = f'<div style="font-size:12px;font-weight:600">{self.label} [{self.unit}]</div>' if self.label else ""
         return f'<div id="couture-legend">{head}{"".join(rows)}</div>'
@@ -231,10 +247,18 @@ def auto_scale(field: str, values: np.ndarray, n_bands: int = 9) -> ColorScale:
     return ColorScale(-a, a, n_bands, True, "N/m", "max principal tension")
 
 
-def field_values(field: str, X: np.ndarray, x: np.ndarray, tris: np.ndarray, *,
-                 stretch_stiffness: float = 20.0, poisson_ratio: float = 0.3,
-                 body_distance: BodyDistance | None = None, contact_offset: float = 0.01,
-                 contact_stiffness: float = 100.0) -> np.ndarray | None:
+def field_values(
+    field: str,
+    X: np.ndarray,
+    x: np.ndarray,
+    tris: np.ndarray,
+    *,
+    stretch_stiffness: float = 20.0,
+    poisson_ratio: float = 0.3,
+    body_distance: BodyDistance | None = None,
+    contact_offset: float = 0.01,
+    contact_stiffness: float = 100.0,
+) -> np.ndarray | None:
     """Per-triangle scalar for a colour-map field (None for 'none', or for
     'pressure' without a body). Pressure, defined per vertex, is averaged to
     triangles."""

@@ -21,9 +21,15 @@ from schemas.design import Design, Fabric
 class Controls:
     """The "Garment", "Fabric" and "Simulation" folders."""
 
-    def __init__(self, gui: viser.GuiApi, design: Callable[[], Design], *,
-                 on_design: Callable[[Design], None], on_solver: Callable[[str], None],
-                 on_field: Callable[[str], None]):
+    def __init__(
+        self,
+        gui: viser.GuiApi,
+        design: Callable[[], Design],
+        *,
+        on_design: Callable[[Design], None],
+        on_solver: Callable[[str], None],
+        on_field: Callable[[str], None],
+    ):
         self.gui = gui
         self.design = design
         """the design the controls edit (the UI's current one)"""
@@ -31,8 +37,9 @@ class Controls:
         d = design()
         with gui.add_folder("Garment"):
             kinds = sloper_kinds()
-            self.sloper = gui.add_dropdown("sloper", tuple(kinds),
-                                           initial_value=d.sloper.kind if d.sloper.kind in kinds else kinds[0])
+            self.sloper = gui.add_dropdown(
+                "sloper", tuple(kinds), initial_value=d.sloper.kind if d.sloper.kind in kinds else kinds[0]
+            )
             on_user_change(self.sloper, self.sloper_chosen)
             self._option_folder = gui.add_folder("options")
             self.params: dict[str, Any] = {}
@@ -53,10 +60,12 @@ class Controls:
             on_user_change(self.solver, lambda: self.on_solver(str(self.solver.value)))
             r = d.resolution
             # small meshes (tests, slow machines) are legitimate: the range widens to the value
-            self.coarse = gui.add_slider("coarse vertices", min(100, r.coarse_vertices), 5000, 100,
-                                         min(r.coarse_vertices, 5000))
-            self.fine = gui.add_slider("fine vertices", min(300, r.fine_vertices), 40000, 100,
-                                       min(r.fine_vertices, 40000))
+            self.coarse = gui.add_slider(
+                "coarse vertices", min(100, r.coarse_vertices), 5000, 100, min(r.coarse_vertices, 5000)
+            )
+            self.fine = gui.add_slider(
+                "fine vertices", min(300, r.fine_vertices), 40000, 100, min(r.fine_vertices, 40000)
+            )
             for slider in (self.coarse, self.fine):
                 on_user_change(slider, self.resolution_changed)
             self.field = gui.add_dropdown("colour map", colormaps.FIELDS, initial_value="none")
@@ -121,8 +130,9 @@ class Controls:
 
     def sloper_chosen(self) -> None:
         d = self.design()
-        new = msgspec.structs.replace(d, sloper=msgspec.structs.replace(d.sloper, kind=str(self.sloper.value),
-                                                                          params={}))
+        new = msgspec.structs.replace(
+            d, sloper=msgspec.structs.replace(d.sloper, kind=str(self.sloper.value), params={})
+        )
         self._build_option_sliders(new)
         self.on_design(new)
 
@@ -136,22 +146,36 @@ class Controls:
         if p is None:
             return
         self.bend.value, self.stretch.value, self.density.value = p.bend_stiffness, p.stretch_stiffness, p.area_density  # type: ignore[misc]  # viser has the setter; mypy misses it
-        self._set_fabric(msgspec.structs.replace(self.design().fabric, name=p.name, bend_stiffness=p.bend_stiffness,
-                                                 stretch_stiffness=p.stretch_stiffness, area_density=p.area_density))
+        self._set_fabric(
+            msgspec.structs.replace(
+                self.design().fabric,
+                name=p.name,
+                bend_stiffness=p.bend_stiffness,
+                stretch_stiffness=p.stretch_stiffness,
+                area_density=p.area_density,
+            )
+        )
 
     def fabric_changed(self) -> None:
         self.preset.value = "custom"  # type: ignore[misc]  # viser has the setter; mypy misses it
-        self._set_fabric(msgspec.structs.replace(
-            self.design().fabric, name="custom", bend_stiffness=float(self.bend.value),
-            stretch_stiffness=float(self.stretch.value), area_density=float(self.density.value)))
+        self._set_fabric(
+            msgspec.structs.replace(
+                self.design().fabric,
+                name="custom",
+                bend_stiffness=float(self.bend.value),
+                stretch_stiffness=float(self.stretch.value),
+                area_density=float(self.density.value),
+            )
+        )
 
     def _set_fabric(self, fabric: Fabric) -> None:
         self.on_design(msgspec.structs.replace(self.design(), fabric=fabric))
 
     def resolution_changed(self) -> None:
         d = self.design()
-        res = msgspec.structs.replace(d.resolution, coarse_vertices=int(self.coarse.value),
-                                      fine_vertices=int(self.fine.value))
+        res = msgspec.structs.replace(
+            d.resolution, coarse_vertices=int(self.coarse.value), fine_vertices=int(self.fine.value)
+        )
         self.on_design(msgspec.structs.replace(d, resolution=res))
 
     def field_chosen(self) -> None:

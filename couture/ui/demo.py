@@ -31,15 +31,22 @@ def demo_sheet(n_vertices: int = 2000, width: float = 1.2, height: float = 0.5) 
         Segment("waist", nx - 1 + ny - 1, 2 * (nx - 1) + ny - 1),
         Segment("left", 2 * (nx - 1) + ny - 1, 0),
     ]
-    pattern = DraftedPattern([Panel("skirt", outline, segments=segs)],
-                             seams=[SeamSpec("skirt", "right", "skirt", "left")])
-    mesh = GarmentMesh(X=mesh.X, tris=mesh.tris, x0=wrap(mesh.X, width, height), panel_names=["skirt"],
-                       tri_panel=np.zeros(len(mesh.tris), np.int32))
+    pattern = DraftedPattern(
+        [Panel("skirt", outline, segments=segs)], seams=[SeamSpec("skirt", "right", "skirt", "left")]
+    )
+    mesh = GarmentMesh(
+        X=mesh.X,
+        tris=mesh.tris,
+        x0=wrap(mesh.X, width, height),
+        panel_names=["skirt"],
+        tri_panel=np.zeros(len(mesh.tris), np.int32),
+    )
     return mesh, pattern
 
 
-def wrap(X: np.ndarray, width: float, height: float, flare: float = 0.12, wave: float = 0.015,
-         phase: float = 0.0) -> np.ndarray:
+def wrap(
+    X: np.ndarray, width: float, height: float, flare: float = 0.12, wave: float = 0.015, phase: float = 0.0
+) -> np.ndarray:
     """The sheet as a flared tube around the hips [m], shape (n, 3): material
     x goes round, material y goes up to the waist."""
     a = 2 * np.pi * X[:, 0] / width + np.pi / 2
@@ -53,5 +60,5 @@ def wrap(X: np.ndarray, width: float, height: float, flare: float = 0.12, wave: 
 def tugged(x: np.ndarray, vertex: int, offset: np.ndarray, radius: float = 0.15) -> np.ndarray:
     """x with a smooth bump moving vertex by ``offset`` [m] (Gaussian falloff
     of ``radius`` [m]): what a fake prediction shows during a drag."""
-    w = np.exp(-((x - x[vertex]) ** 2).sum(axis=1) / (2 * radius ** 2))
+    w = np.exp(-((x - x[vertex]) ** 2).sum(axis=1) / (2 * radius**2))
     return x + w[:, None] * np.asarray(offset)[None, :]

@@ -48,8 +48,12 @@ def load_body(path: Path = MANNEQUIN_OBJ) -> tuple[np.ndarray, np.ndarray]:
 
 def same_geometry(a: GarmentMesh, b: GarmentMesh) -> bool:
     """Same rest positions and triangles (the same mesh, possibly re-sent)."""
-    return (a.X.shape == b.X.shape and a.tris.shape == b.tris.shape
-            and np.array_equal(a.tris, b.tris) and np.array_equal(a.X, b.X))
+    return (
+        a.X.shape == b.X.shape
+        and a.tris.shape == b.tris.shape
+        and np.array_equal(a.tris, b.tris)
+        and np.array_equal(a.X, b.X)
+    )
 
 
 TugCallback = Callable[[Phase, MaterialPoint, int, tuple[float, float], tuple[float, float], CameraState | None], None]
@@ -80,9 +84,15 @@ class DrapeView:
         self.body_distance: colormaps.BodyDistance | None = None
         self.body_vertices, self.body_faces = load_body()
         if show_body:
-            server.scene.add_mesh_simple("/body", self.body_vertices.astype(np.float32),
-                                         self.body_faces.astype(np.uint32), color=BODY_COLOR, side="front",
-                                         cast_shadow=False, receive_shadow=False)
+            server.scene.add_mesh_simple(
+                "/body",
+                self.body_vertices.astype(np.float32),
+                self.body_faces.astype(np.uint32),
+                color=BODY_COLOR,
+                side="front",
+                cast_shadow=False,
+                receive_shadow=False,
+            )
         # the mannequin fills the canvas's height (or its width, on a wide canvas)
         self.body_box = (self.body_vertices.min(axis=0), self.body_vertices.max(axis=0))
         ic = server.initial_camera
@@ -90,18 +100,33 @@ class DrapeView:
         ic.position, ic.look_at = self.fit_body(0.5)
         ic.up = (0.0, 1.0, 0.0)
         self.framing = ClientFraming(server, self.fit_body)
-        self.plain = server.scene.add_mesh_simple("/drape/plain", _EMPTY_V, _EMPTY_F, color=DRAPE_COLOR,
-                                                  side="double", visible=False, cast_shadow=False,
-                                                  receive_shadow=False)
+        self.plain = server.scene.add_mesh_simple(
+            "/drape/plain",
+            _EMPTY_V,
+            _EMPTY_F,
+            color=DRAPE_COLOR,
+            side="double",
+            visible=False,
+            cast_shadow=False,
+            receive_shadow=False,
+        )
         self.bands = [
-            server.scene.add_mesh_simple(f"/drape/band{b}", _EMPTY_V, _EMPTY_F, color=DRAPE_COLOR,
-                                         side="double", visible=False, cast_shadow=False,
-                                         receive_shadow=False)
+            server.scene.add_mesh_simple(
+                f"/drape/band{b}",
+                _EMPTY_V,
+                _EMPTY_F,
+                color=DRAPE_COLOR,
+                side="double",
+                visible=False,
+                cast_shadow=False,
+                receive_shadow=False,
+            )
             for b in range(n_bands)
         ]
         self._band_tris: list[np.ndarray | None] = [None] * n_bands
-        self.marker = server.scene.add_icosphere("/marker", radius=0.012, color=(230, 30, 30), visible=False,
-                                                 cast_shadow=False, receive_shadow=False)
+        self.marker = server.scene.add_icosphere(
+            "/marker", radius=0.012, color=(230, 30, 30), visible=False, cast_shadow=False, receive_shadow=False
+        )
         for h in [self.plain, *self.bands]:
             h.on_drag(self._on_drag)
             h.on_click(self._on_click)
@@ -112,8 +137,9 @@ class DrapeView:
         height, or on a narrow canvas the span of its arms)."""
         lo, hi = self.body_box
         c = 0.5 * (lo + hi)
-        dist = fit_distance(0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), CAMERA_FOV, aspect,
-                            fill=0.95) + (hi[2] - c[2])
+        dist = fit_distance(0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), CAMERA_FOV, aspect, fill=0.95) + (
+            hi[2] - c[2]
+        )
         return (float(c[0]), float(c[1]), float(c[2] + dist)), (float(c[0]), float(c[1]), float(c[2]))
 
     # -- data in ----------------------------------------------------------------
@@ -161,10 +187,15 @@ class DrapeView:
     def field_values(self) -> np.ndarray | None:
         if self.mesh is None or self.x is None:
             return None
-        return colormaps.field_values(self.field, self.mesh.X, self.x, self.mesh.tris,
-                                      stretch_stiffness=self.fabric.stretch_stiffness,
-                                      poisson_ratio=self.fabric.poisson_ratio,
-                                      body_distance=self.body_distance)
+        return colormaps.field_values(
+            self.field,
+            self.mesh.X,
+            self.x,
+            self.mesh.tris,
+            stretch_stiffness=self.fabric.stretch_stiffness,
+            poisson_ratio=self.fabric.poisson_ratio,
+            body_distance=self.body_distance,
+        )
 
     def _draw(self) -> None:
         mesh, x = self.mesh, self.x
@@ -187,7 +218,7 @@ class DrapeView:
             order = np.argsort(band, kind="stable")
             bounds = np.searchsorted(band[order], np.arange(self.n_bands + 1))
             for b, h in enumerate(self.bands):
-                tri_idx = order[bounds[b]:bounds[b + 1]]
+                tri_idx = order[bounds[b] : bounds[b + 1]]
                 if tri_idx.size == 0:
                     h.visible = False
                     self._band_tris[b] = None

@@ -54,10 +54,15 @@ class SessionPanel:
     """Record toggle and export buttons. ``pattern`` and ``drape`` return what
     is on screen now (None while there is nothing)."""
 
-    def __init__(self, gui: viser.GuiApi, export_dir: Path, *,
-                 pattern: Callable[[], DraftedPattern | None],
-                 drape: Callable[[], tuple[GarmentMesh | None, np.ndarray | None]],
-                 on_record: Callable[[bool], object]):
+    def __init__(
+        self,
+        gui: viser.GuiApi,
+        export_dir: Path,
+        *,
+        pattern: Callable[[], DraftedPattern | None],
+        drape: Callable[[], tuple[GarmentMesh | None, np.ndarray | None]],
+        on_record: Callable[[bool], object],
+    ):
         self.export_dir = Path(export_dir)
         self.pattern, self.drape, self.on_record = pattern, drape, on_record
         with gui.add_folder("Session", expand_by_default=False):

@@ -28,8 +28,9 @@ class MaterialPoint:
         return int(tris[self.tri][int(np.argmax(self.bary))])
 
 
-def locate_in_pattern(X: np.ndarray, tris: np.ndarray, p: np.ndarray,
-                      tri_mask: np.ndarray | None = None) -> MaterialPoint | None:
+def locate_in_pattern(
+    X: np.ndarray, tris: np.ndarray, p: np.ndarray, tri_mask: np.ndarray | None = None
+) -> MaterialPoint | None:
     """The triangle of the rest mesh containing the 2D point ``p`` [m] and its
     barycentric weights; if p lies outside every triangle, the closest
     triangle by barycentric violation (so a click just beside a boundary still
@@ -100,11 +101,13 @@ def quat_to_matrix(wxyz) -> np.ndarray:
     w, x, y, z = (float(c) for c in wxyz)
     n = w * w + x * x + y * y + z * z
     s = 2.0 / n if n > 0 else 0.0
-    return np.array([
-        [1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)],
-        [s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w)],
-        [s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y)],
-    ])
+    return np.array(
+        [
+            [1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)],
+            [s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w)],
+            [s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y)],
+        ]
+    )
 
 
 @dataclass
@@ -130,9 +133,16 @@ class CameraState:
 
     @classmethod
     def from_viser(cls, camera) -> "CameraState":
-        return cls(np.asarray(camera.position, np.float64), np.asarray(camera.wxyz, np.float64),
-                   float(camera.fov), float(camera.aspect), int(camera.image_width), int(camera.image_height),
-                   float(getattr(camera, "near", 0.01)), float(getattr(camera, "far", 1000.0)))
+        return cls(
+            np.asarray(camera.position, np.float64),
+            np.asarray(camera.wxyz, np.float64),
+            float(camera.fov),
+            float(camera.aspect),
+            int(camera.image_width),
+            int(camera.image_height),
+            float(getattr(camera, "near", 0.01)),
+            float(getattr(camera, "far", 1000.0)),
+        )
 
     def view_proj_gl(self) -> np.ndarray:
         """4x4 OpenGL view-projection (world [m] -> clip; NDC x right, y up,
@@ -143,12 +153,14 @@ class CameraState:
         view[:3, 3] = -R.T @ self.position
         f = 1.0 / np.tan(0.5 * self.fov)
         n, fa = self.near, self.far
-        proj = np.array([
-            [f / self.aspect, 0, 0, 0],
-            [0, f, 0, 0],
-            [0, 0, (fa + n) / (n - fa), 2 * fa * n / (n - fa)],
-            [0, 0, -1, 0],
-        ])
+        proj = np.array(
+            [
+                [f / self.aspect, 0, 0, 0],
+                [0, f, 0, 0],
+                [0, 0, (fa + n) / (n - fa), 2 * fa * n / (n - fa)],
+                [0, 0, -1, 0],
+            ]
+        )
         return proj @ view
 
     def view_projection(self) -> np.ndarray:

@@ -23,6 +23,7 @@ from schemas.design import Design
 
 log = logging.getLogger("couture.ui")
 
+
 @dataclass(frozen=True)
 class ScreenPick:
     """Where a 3D tug grabbed the cloth, and the camera it was seen through."""
@@ -60,9 +61,16 @@ class Edit:
 class Gestures:
     """Turns drags into edits; hands them to ``on_edit``."""
 
-    def __init__(self, design: Callable[[], Design], commit: Callable[[Design], None], *,
-                 restore_pattern: Callable[[], None], say: Callable[[str], None],
-                 tug_option: Callable[[], str], on_edit: Callable[[Edit], object]):
+    def __init__(
+        self,
+        design: Callable[[], Design],
+        commit: Callable[[Design], None],
+        *,
+        restore_pattern: Callable[[], None],
+        say: Callable[[str], None],
+        tug_option: Callable[[], str],
+        on_edit: Callable[[Edit], object],
+    ):
         self.design, self.commit = design, commit
         self.restore_pattern, self.say, self.tug_option = restore_pattern, say, tug_option
         self.on_edit = on_edit
@@ -99,13 +107,33 @@ class Gestures:
             return
         self.commit(new)
 
-    def tug(self, phase: Phase, mp: MaterialPoint, vertex: int, p0: tuple[float, float], p: tuple[float, float],
-            cam: CameraState | None) -> None:
+    def tug(
+        self,
+        phase: Phase,
+        mp: MaterialPoint,
+        vertex: int,
+        p0: tuple[float, float],
+        p: tuple[float, float],
+        cam: CameraState | None,
+    ) -> None:
         """A drag on the drape: screen pixels since press, with the pick and the camera."""
         edit_id = self._begin(phase)
         param = self.tug_option()
-        pick = ScreenPick(int(vertex), int(mp.tri), np.asarray(mp.bary, np.float64).copy(),
-                          cam.view_proj_gl() if cam is not None else None,
-                          (cam.width, cam.height) if cam is not None else None)
-        self._emit(Edit(edit_id, phase, f"param:{param}" if param else "", (param,) if param else (),
-                        np.array([p[0] - p0[0], p[1] - p0[1]], np.float64), param, pick))
+        pick = ScreenPick(
+            int(vertex),
+            int(mp.tri),
+            np.asarray(mp.bary, np.float64).copy(),
+            cam.view_proj_gl() if cam is not None else None,
+            (cam.width, cam.height) if cam is not None else None,
+        )
+        self._emit(
+            Edit(
+                edit_id,
+                phase,
+                f"param:{param}" if param else "",
+                (param,) if param else (),
+                np.array([p[0] - p0[0], p[1] - p0[1]], np.float64),
+                param,
+                pick,
+            )
+        )

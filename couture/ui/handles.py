@@ -45,8 +45,14 @@ import numpy as np
 
 log = logging.getLogger("couture.ui.handles")
 
-BODY_OPTION_SUFFIXES = ("_girth", "waist_to_hip", "waist_to_underarm", "waist_to_shoulder", "shoulder_width",
-                        "crotch_depth")
+BODY_OPTION_SUFFIXES = (
+    "_girth",
+    "waist_to_hip",
+    "waist_to_underarm",
+    "waist_to_shoulder",
+    "shoulder_width",
+    "crotch_depth",
+)
 
 
 @dataclass
@@ -153,8 +159,9 @@ def plan_handles(design, pattern, *, min_gap: float = 0.03, near: float = 0.8) -
     options = {o.name: o for o in SLOPERS[design.sloper.kind].options} if design.sloper.kind in SLOPERS else {}
     params = dict(design.sloper.params)
     # strokes first (their vertex is unambiguous), then the style options
-    order = ([e for e in elements if _element_kind(e) != "param"]
-             + [e for e in elements if _element_kind(e) == "param" and not _is_body_option(e)])
+    order = [e for e in elements if _element_kind(e) != "param"] + [
+        e for e in elements if _element_kind(e) == "param" and not _is_body_option(e)
+    ]
     panels = {p.name: p for p in pattern.panels}
     names = [p.name for p in pattern.panels]
     taken: list[tuple[str, np.ndarray]] = []
@@ -171,8 +178,9 @@ def plan_handles(design, pattern, *, min_gap: float = 0.03, near: float = 0.8) -
             pj, pn = J.get(name), panels[name]
             if pj is None or pj.outline.shape[0] != len(pn.outline):
                 continue
-            polys = [(-1, pj.outline)] + [(k, hj) for k, hj in enumerate(pj.holes)
-                                          if k < len(pn.holes) and hj.shape[0] == len(pn.holes[k])]
+            polys = [(-1, pj.outline)] + [
+                (k, hj) for k, hj in enumerate(pj.holes) if k < len(pn.holes) and hj.shape[0] == len(pn.holes[k])
+            ]
             for hole, jac in polys:
                 mag = np.linalg.norm(jac.reshape(len(jac), -1), axis=1)
                 for vi in np.flatnonzero(mag > 1e-9):

@@ -29,8 +29,16 @@ log = logging.getLogger("couture.ui")
 
 
 class DrapeRenderer:
-    def __init__(self, view3d: DrapeView, status: StatusPanel, controls: Controls, *,
-                 meshes: Callable[[], Iterable[GarmentMesh]], selected_solver: Callable[[], str], max_fps: float):
+    def __init__(
+        self,
+        view3d: DrapeView,
+        status: StatusPanel,
+        controls: Controls,
+        *,
+        meshes: Callable[[], Iterable[GarmentMesh]],
+        selected_solver: Callable[[], str],
+        max_fps: float,
+    ):
         self.view3d, self.status, self.controls = view3d, status, controls
         self.meshes, self.selected_solver = meshes, selected_solver
         self.min_dt = 1.0 / max(max_fps, 1.0)
@@ -78,8 +86,13 @@ class DrapeRenderer:
 
 
 class Drafter:
-    def __init__(self, *, show_pattern: Callable[[DraftedPattern], None], pattern: Callable[[], DraftedPattern | None],
-                 show_handles: Callable[[Design, HandleSet], None]):
+    def __init__(
+        self,
+        *,
+        show_pattern: Callable[[DraftedPattern], None],
+        pattern: Callable[[], DraftedPattern | None],
+        show_handles: Callable[[Design, HandleSet], None],
+    ):
         self.show_pattern, self.pattern, self.show_handles = show_pattern, pattern, show_handles
         self.slot: LatestSlot[Design] = LatestSlot()
 

@@ -29,10 +29,21 @@ from couture.ui.handles import Handle, HandleSet
 from couture.ui.state import VISER_DRAG_PHASE, Phase
 from couture.ui.widgets import ClientFraming, fit_distance
 
-SEAM_PALETTE = np.array([
-    (228, 26, 28), (55, 126, 184), (77, 175, 74), (152, 78, 163), (255, 127, 0),
-    (166, 86, 40), (247, 129, 191), (0, 170, 170), (180, 180, 0), (90, 90, 90),
-], np.uint8)
+SEAM_PALETTE = np.array(
+    [
+        (228, 26, 28),
+        (55, 126, 184),
+        (77, 175, 74),
+        (152, 78, 163),
+        (255, 127, 0),
+        (166, 86, 40),
+        (247, 129, 191),
+        (0, 170, 170),
+        (180, 180, 0),
+        (90, 90, 90),
+    ],
+    np.uint8,
+)
 PANEL_FILL = (236, 228, 214)
 OUTLINE = (40, 40, 40)
 HANDLE_COLORS = {"param": (20, 90, 200), "cv": (20, 160, 120), "dart": (200, 0, 120), "hole": (200, 0, 120)}
@@ -74,7 +85,8 @@ def layout_offsets(pattern: DraftedPattern, gap: float = 0.08) -> dict[str, np.n
     names = list(boxes)
     overlap = any(
         np.all(boxes[a][0] < boxes[b][1]) and np.all(boxes[b][0] < boxes[a][1])
-        for i, a in enumerate(names) for b in names[i + 1:]
+        for i, a in enumerate(names)
+        for b in names[i + 1 :]
     )
     if not overlap:
         return {n: np.zeros(2) for n in names}
@@ -86,8 +98,9 @@ def layout_offsets(pattern: DraftedPattern, gap: float = 0.08) -> dict[str, np.n
     return out
 
 
-def fit_camera(lo: np.ndarray, hi: np.ndarray, aspect: float) -> tuple[tuple[float, float, float],
-                                                                      tuple[float, float, float]]:
+def fit_camera(
+    lo: np.ndarray, hi: np.ndarray, aspect: float
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """Camera (position, look_at) [m] looking straight down (-z) at the box
     lo..hi [m] of the pattern plane, the box spanning 90 % of a canvas of this
     aspect (width / height) in its tighter direction; vertical field of view CAMERA_FOV."""
@@ -128,8 +141,9 @@ class PatternView:
         ic.up = (0.0, 1.0, 0.0)
         ic.position, ic.look_at = self.fit_pattern(1.0)
         self.framing = ClientFraming(server, self.fit_pattern)
-        self.marker = server.scene.add_icosphere("/marker", radius=0.012, color=(230, 30, 30), visible=False,
-                                                 position=(0.0, 0.0, 0.004))
+        self.marker = server.scene.add_icosphere(
+            "/marker", radius=0.012, color=(230, 30, 30), visible=False, position=(0.0, 0.0, 0.004)
+        )
         server.scene.on_click()(self._on_scene_click)
 
     # -- data in ----------------------------------------------------------------
@@ -154,8 +168,12 @@ class PatternView:
 
     def set_mesh(self, mesh: GarmentMesh) -> None:
         with self._lock:
-            if self.mesh is not None and self.mesh.tris.shape == mesh.tris.shape \
-                    and np.array_equal(self.mesh.tris, mesh.tris) and np.array_equal(self.mesh.X, mesh.X):
+            if (
+                self.mesh is not None
+                and self.mesh.tris.shape == mesh.tris.shape
+                and np.array_equal(self.mesh.tris, mesh.tris)
+                and np.array_equal(self.mesh.X, mesh.X)
+            ):
                 self.mesh = mesh
                 return
             self.mesh = mesh
@@ -214,9 +232,16 @@ class PatternView:
             for p in pat.panels:
                 self._draw_panel(p, p.outline)
                 c = self.display(p.name, p.outline).mean(axis=0)
-                self._add(f"/panels/{p.name}/label", sc.add_label(
-                    f"/panels/{p.name}/label", p.name, position=(float(c[0]), float(c[1]), 0.002),
-                    anchor="center-center", font_screen_scale=0.8))
+                self._add(
+                    f"/panels/{p.name}/label",
+                    sc.add_label(
+                        f"/panels/{p.name}/label",
+                        p.name,
+                        position=(float(c[0]), float(c[1]), 0.002),
+                        anchor="center-center",
+                        font_screen_scale=0.8,
+                    ),
+                )
             self._draw_seams()
             self._draw_handles()
 
@@ -228,15 +253,23 @@ class PatternView:
         loops = [P, *holes]
         segs = np.concatenate([np.stack([L, np.roll(L, -1, axis=0)], axis=1) for L in loops])
         name = f"/panels/{p.name}/outline"
-        self._add(name, sc.add_line_segments(name, _lift(segs, 0.0), OUTLINE, thickness=2.0,
-                                             thickness_units="screen"))
+        self._add(name, sc.add_line_segments(name, _lift(segs, 0.0), OUTLINE, thickness=2.0, thickness_units="screen"))
         fill = _triangulate(P, holes)
         if fill is not None:
             v, f = fill
             name = f"/panels/{p.name}/fill"
-            self._add(name, sc.add_mesh_simple(
-                name, np.column_stack([v, np.full(len(v), -0.002)]).astype(np.float32), f.astype(np.uint32),
-                color=PANEL_FILL, side="double", cast_shadow=False, receive_shadow=False))
+            self._add(
+                name,
+                sc.add_mesh_simple(
+                    name,
+                    np.column_stack([v, np.full(len(v), -0.002)]).astype(np.float32),
+                    f.astype(np.uint32),
+                    color=PANEL_FILL,
+                    side="double",
+                    cast_shadow=False,
+                    receive_shadow=False,
+                ),
+            )
         legs = []
         for seg in p.segments:
             if is_dart_leg(seg.name):
@@ -245,8 +278,12 @@ class PatternView:
                 legs.append(np.stack([Q[:-1], Q[1:]], axis=1))
         if legs:
             name = f"/panels/{p.name}/darts"
-            self._add(name, sc.add_line_segments(name, _lift(np.concatenate(legs), 0.001), DART_COLOR,
-                                                 thickness=3.0, thickness_units="screen"))
+            self._add(
+                name,
+                sc.add_line_segments(
+                    name, _lift(np.concatenate(legs), 0.001), DART_COLOR, thickness=3.0, thickness_units="screen"
+                ),
+            )
 
     def _draw_seams(self) -> None:
         """Seams between panel edges, each pair in its own colour (a dart's
@@ -265,9 +302,16 @@ class PatternView:
                 except (KeyError, StopIteration):
                     continue
                 name = f"/seams/{k}/{side}"
-                self._add(name, self.server.scene.add_line_segments(
-                    name, _lift(np.stack([P[:-1], P[1:]], axis=1), 0.001), col, thickness=5.0,
-                    thickness_units="screen"))
+                self._add(
+                    name,
+                    self.server.scene.add_line_segments(
+                        name,
+                        _lift(np.stack([P[:-1], P[1:]], axis=1), 0.001),
+                        col,
+                        thickness=5.0,
+                        thickness_units="screen",
+                    ),
+                )
             k += 1
 
     def handle_positions(self) -> np.ndarray:
@@ -294,14 +338,28 @@ class PatternView:
         cols = np.array([HANDLE_COLORS.get(h.kind, HANDLE_ACTIVE) for h in self.handles], np.uint8)
         for i, (h, p) in enumerate(zip(self.handles, pos, strict=True)):
             name = f"/handles_labels/{i}"
-            self._labels.append(sc.add_label(name, h.label, position=(float(p[0]) + 0.015, float(p[1]), 0.004),
-                                             anchor="center-left", font_screen_scale=0.8,
-                                             visible=self._label_visible(i)))
+            self._labels.append(
+                sc.add_label(
+                    name,
+                    h.label,
+                    position=(float(p[0]) + 0.015, float(p[1]), 0.004),
+                    anchor="center-left",
+                    font_screen_scale=0.8,
+                    visible=self._label_visible(i),
+                )
+            )
             self._add(name, self._labels[-1])
         self._handle_node = sc.add_batched_meshes_simple(
-            "/handles", np.asarray(ico.vertices, np.float32), np.asarray(ico.faces, np.uint32),
-            batched_wxyzs=np.tile([1.0, 0.0, 0.0, 0.0], (len(pos), 1)), batched_positions=pos.astype(np.float32),
-            batched_colors=cols, cast_shadow=False, receive_shadow=False, lod="off")
+            "/handles",
+            np.asarray(ico.vertices, np.float32),
+            np.asarray(ico.faces, np.uint32),
+            batched_wxyzs=np.tile([1.0, 0.0, 0.0, 0.0], (len(pos), 1)),
+            batched_positions=pos.astype(np.float32),
+            batched_colors=cols,
+            cast_shadow=False,
+            receive_shadow=False,
+            lod="off",
+        )
         self._add("/handles", self._handle_node)
         self._handle_node.on_drag(self._on_handle_drag)
         self._handle_node.on_click(self._on_handle_click)
@@ -349,8 +407,13 @@ class PatternView:
         e = np.sort(np.concatenate([m.tris[:, [0, 1]], m.tris[:, [1, 2]], m.tris[:, [2, 0]]]), axis=1)
         e = np.unique(e, axis=0)
         XY = self.mesh_display_X()
-        sc.add_line_segments("/mesh", _lift(np.stack([XY[e[:, 0]], XY[e[:, 1]]], axis=1), -0.001),
-                             (150, 150, 170), thickness=1.0, thickness_units="screen")
+        sc.add_line_segments(
+            "/mesh",
+            _lift(np.stack([XY[e[:, 0]], XY[e[:, 1]]], axis=1), -0.001),
+            (150, 150, 170),
+            thickness=1.0,
+            thickness_units="screen",
+        )
 
     def set_show_mesh(self, on: bool) -> None:
         with self._lock:
@@ -447,8 +510,11 @@ class PatternView:
             phase = VISER_DRAG_PHASE[event.phase]
             if phase == "press":
                 h = self.handles[event.instance_index]
-                self._drag = {"handle": h, "grab": np.asarray(event.end_position[:2], np.float64),
-                              "index": event.instance_index}
+                self._drag = {
+                    "handle": h,
+                    "grab": np.asarray(event.end_position[:2], np.float64),
+                    "index": event.instance_index,
+                }
                 self.select_handle(event.instance_index)
             drag = self._drag
             if drag is None:
@@ -514,8 +580,12 @@ def _triangulate(P: np.ndarray, holes: list[np.ndarray]) -> tuple[np.ndarray, np
     if not loops or loops[0] is not P:
         return None
     starts = np.cumsum([0] + [len(L) for L in loops[:-1]])
-    segs = np.concatenate([s + np.column_stack([np.arange(len(L)), (np.arange(len(L)) + 1) % len(L)])
-                           for s, L in zip(starts, loops, strict=True)])
+    segs = np.concatenate(
+        [
+            s + np.column_stack([np.arange(len(L)), (np.arange(len(L)) + 1) % len(L)])
+            for s, L in zip(starts, loops, strict=True)
+        ]
+    )
     data = {"vertices": np.concatenate(loops), "segments": segs}
     if len(loops) > 1:
         data["holes"] = np.array([_point_inside(L) for L in loops[1:]])

@@ -80,7 +80,8 @@ class DrapeFrame:
 
 
 FABRIC_PRESETS: dict[str, Fabric] = {
-    f.name: f for f in (
+    f.name: f
+    for f in (
         # SC Table 1 rows (bending [N m], stretching [N/m], density [kg/m²])
         Fabric(name="silk-like", bend_stiffness=1e-8, stretch_stiffness=10.0, area_density=0.2),
         Fabric(name="cotton", bend_stiffness=5e-6, stretch_stiffness=200.0, area_density=0.15),

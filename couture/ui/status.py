@@ -84,8 +84,9 @@ class StatusPanel:
                 info.seen = time.time()
         self.dirty.set()
 
-    def set_node_status(self, name: str, *, kind: str = "", state: str = "", rates: dict | None = None,
-                        last_error: str = "") -> None:
+    def set_node_status(
+        self, name: str, *, kind: str = "", state: str = "", rates: dict | None = None, last_error: str = ""
+    ) -> None:
         info = self.nodes.setdefault(name, NodeInfo(name))
         info.kind, info.state, info.rates, info.last_error = kind, state, dict(rates or {}), last_error
         info.seen = time.time()

@@ -40,15 +40,26 @@ class ArmedTool:
 class PatternTools:
     """The "Tools" folder and what a click on the pattern does."""
 
-    def __init__(self, gui: viser.GuiApi, view2d: PatternView, design: Callable[[], Design],
-                 commit: Callable[[Design], None], pick: Callable[[MaterialPoint], None]):
+    def __init__(
+        self,
+        gui: viser.GuiApi,
+        view2d: PatternView,
+        design: Callable[[], Design],
+        commit: Callable[[Design], None],
+        pick: Callable[[MaterialPoint], None],
+    ):
         self.view2d, self.design, self.commit, self.pick = view2d, design, commit, pick
         self.armed: ArmedTool | None = None
         self._stroke_ids = itertools.count(1)
         with gui.add_folder("Tools"):
             self.help = gui.add_markdown(IDLE_HELP)
-            for label, tool in (("Add a curve point", "curve"), ("Draw a dart", "dart"),
-                                ("Sew two segments", "seam"), ("Mark symmetry", "symmetry"), ("Cancel tool", None)):
+            for label, tool in (
+                ("Add a curve point", "curve"),
+                ("Draw a dart", "dart"),
+                ("Sew two segments", "seam"),
+                ("Mark symmetry", "symmetry"),
+                ("Cancel tool", None),
+            ):
 
                 def arm(_: viser.GuiEvent, tool: str | None = tool) -> None:
                     self.arm(tool)
@@ -93,19 +104,33 @@ class PatternTools:
         if tool == "curve":
             # couture.pattern's curve stroke: control points [s, dn] (fraction
             # along the segment, normal displacement [m]); a new point starts at dn = 0
-            old = next((s for s in self.design().strokes
-                        if s.kind == "curve" and s.panel == pn and s.params.get("segment") == sn), None)
+            old = next(
+                (
+                    s
+                    for s in self.design().strokes
+                    if s.kind == "curve" and s.panel == pn and s.params.get("segment") == sn
+                ),
+                None,
+            )
             pts = [list(q) for q in (old.params["points"] if old else [])]
             pts = sorted(pts + [[round(min(max(t, 0.02), 0.98), 4), 0.0]])
-            return Stroke(id=old.id if old else f"curve-{pn}-{sn}", kind="curve", panel=pn,
-                          params={"segment": sn, "points": pts})
+            return Stroke(
+                id=old.id if old else f"curve-{pn}-{sn}", kind="curve", panel=pn, params={"segment": sn, "points": pts}
+            )
         if tool == "dart":
             # couture.pattern's boundary dart: position along the segment (0..1), width, length [m]
-            return Stroke(id=f"dart-{n}", kind="dart", panel=pn,
-                          params={"segment": sn, "position": round(min(max(t, 0.05), 0.95), 4),
-                                  "width": 0.02, "length": 0.08})
+            return Stroke(
+                id=f"dart-{n}",
+                kind="dart",
+                panel=pn,
+                params={"segment": sn, "position": round(min(max(t, 0.05), 0.95), 4), "width": 0.02, "length": 0.08},
+            )
         if tool == "symmetry":
             return Stroke(id=f"symmetry-{n}", kind="symmetry", panel=pn, params={"axis": sn})
         (pa, sa, _), (pb, sb, _) = picks
-        return Stroke(id=f"seam-{n}", kind="seam", panel="",
-                      params={"a_panel": pa, "a_segment": sa, "b_panel": pb, "b_segment": sb})
+        return Stroke(
+            id=f"seam-{n}",
+            kind="seam",
+            panel="",
+            params={"a_panel": pa, "a_segment": sa, "b_panel": pb, "b_segment": sb},
+        )

@@ -43,9 +43,15 @@ def main(config: Config) -> None:
             # Ψ rides on the mesh the receivers already hold, marked unchanged so
             # that none of them resets its state to this mesh's x0
             msg = mesh_to_msg(
-                up.mesh, generation=service.generation, mesh_generation=up.mesh_generation,
-                psi=psi, psi_edit_id=edit_id, unchanged=psi is not None, design_id=service.design_id,
-                fine_parent_tri=up.fine_parent_tri, fine_bary=up.fine_bary,
+                up.mesh,
+                generation=service.generation,
+                mesh_generation=up.mesh_generation,
+                psi=psi,
+                psi_edit_id=edit_id,
+                unchanged=psi is not None,
+                design_id=service.design_id,
+                fine_parent_tri=up.fine_parent_tri,
+                fine_bary=up.fine_bary,
             )
             pubs[up.level].put(msg)
 
@@ -60,12 +66,23 @@ def main(config: Config) -> None:
                     return
                 if generation != msg.generation:
                     node.count("renumbered_patterns")
-                    log.warning("pattern %r from %r asked for generation %d, already used: numbered %d",
-                                msg.design_id or msg.name, msg.source, msg.generation, generation)
+                    log.warning(
+                        "pattern %r from %r asked for generation %d, already used: numbered %d",
+                        msg.design_id or msg.name,
+                        msg.source,
+                        msg.generation,
+                        generation,
+                    )
                 for up in updates:
                     publish(up)
-                    log.info("gen %d %s: %d vertices (%s, %.0f ms)", generation, up.level,
-                             up.mesh.n_vertices, up.how, 1e3 * up.seconds)
+                    log.info(
+                        "gen %d %s: %d vertices (%s, %.0f ms)",
+                        generation,
+                        up.level,
+                        up.mesh.n_vertices,
+                        up.how,
+                        1e3 * up.seconds,
+                    )
                 node.count("meshes", len(updates))
                 worker.submit("warm", service.warm_coordinates)
 
@@ -86,8 +103,7 @@ def main(config: Config) -> None:
                     node.error(f"edit {msg.edit_id}: no Ψ for {element!r}: {e}")
                     return
                 for level, st in service.levels.items():
-                    publish(MeshUpdate(level, st.mesh, st.mesh_generation, "psi"), psi=psis[level],
-                            edit_id=msg.edit_id)
+                    publish(MeshUpdate(level, st.mesh, st.mesh_generation, "psi"), psi=psis[level], edit_id=msg.edit_id)
                 node.count("psi")
 
             worker.submit("press", job)

@@ -50,9 +50,14 @@ class Config:
 
 
 def main(config: Config) -> None:
-    service = SensitivityService(SensitivityConfig(method=config.method, pause_s=config.pause_s,
-                                                   enrich_seconds=config.enrich_seconds,
-                                                   enrich_tol=config.enrich_tol))
+    service = SensitivityService(
+        SensitivityConfig(
+            method=config.method,
+            pause_s=config.pause_s,
+            enrich_seconds=config.enrich_seconds,
+            enrich_tol=config.enrich_tol,
+        )
+    )
     with Node(config.name, config.bus, kind="sensitivity") as node:
         service.count = node.count
         bus = node.bus
@@ -64,10 +69,21 @@ def main(config: Config) -> None:
         def publish(out: PredictionOut | None) -> None:
             if out is None:
                 return
-            pred_pub.put(DrapeMsg(level="predicted", mesh_level="fine", mesh_generation=out.mesh_generation,
-                                  x=out.x.astype(np.float32), d=out.d, edit_id=out.edit_id, method=out.method,
-                                  error_estimate=out.error_estimate, generation=out.generation, final=True,
-                                  diagnosis="release" if out.release else ""))
+            pred_pub.put(
+                DrapeMsg(
+                    level="predicted",
+                    mesh_level="fine",
+                    mesh_generation=out.mesh_generation,
+                    x=out.x.astype(np.float32),
+                    d=out.d,
+                    edit_id=out.edit_id,
+                    method=out.method,
+                    error_estimate=out.error_estimate,
+                    generation=out.generation,
+                    final=True,
+                    diagnosis="release" if out.release else "",
+                )
+            )
 
         def take(m: Matched[GarmentMesh]) -> None:
             idle.submit("mesh", lambda: service.take(m))
@@ -99,15 +115,22 @@ def main(config: Config) -> None:
             def job() -> None:
                 if service.equilibrium(msg.mesh_generation, x) is not None:
                     node.count("refactors")
+
             idle.submit("equilibrium", job)
 
         def on_edit(msg: EditMsg) -> None:
             if msg.phase == "press":
-                service.press(Press(
-                    edit_id=msg.edit_id, element=msg.element, generation=msg.generation, param=msg.param,
-                    picked_vertex=msg.picked_vertex,
-                    view_proj=None if msg.view_proj is None else msg.view_proj.numpy().copy(),
-                    viewport=(tuple(msg.viewport_px) if len(msg.viewport_px) == 2 else (1, 1))))  # type: ignore[arg-type]
+                service.press(
+                    Press(
+                        edit_id=msg.edit_id,
+                        element=msg.element,
+                        generation=msg.generation,
+                        param=msg.param,
+                        picked_vertex=msg.picked_vertex,
+                        view_proj=None if msg.view_proj is None else msg.view_proj.numpy().copy(),
+                        viewport=(tuple(msg.viewport_px) if len(msg.viewport_px) == 2 else (1, 1)),
+                    )
+                )  # type: ignore[arg-type]
                 node.count("presses")
                 return
             if service.current(msg.edit_id) is None:
@@ -147,8 +170,15 @@ def main(config: Config) -> None:
             if r.prediction is not None:
                 node.count("predictions")
             if r.design is not None:
-                pattern_pub.put(PatternMsg(design=r.design, generation=r.generation, design_id=r.design_id,
-                                           source=config.name, name="3D tug"))
+                pattern_pub.put(
+                    PatternMsg(
+                        design=r.design,
+                        generation=r.generation,
+                        design_id=r.design_id,
+                        source=config.name,
+                        name="3D tug",
+                    )
+                )
 
         # -- idle enrichment: a short solve where the pointer pauses ------------
         def enrich(g: Gesture) -> None:

@@ -9,11 +9,23 @@ if __name__ == "__main__":
     add_bus_args(p)
     p.add_argument("--name", default="solver-kinetic", help="node name, unique in the session")
     p.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet"])
-    p.add_argument("--max-seconds", type=float, default=None,
-                   help="[s] cap on each level's solve (default: the service's)")
-    p.add_argument("--backend", default=None, choices=["pardiso", "pardiso32", "cholmod", "splu"],
-                   help="direct linear-solver backend (default: $COUTURE_SOLVER_BACKEND, else the solver's own)")
+    p.add_argument(
+        "--max-seconds", type=float, default=None, help="[s] cap on each level's solve (default: the service's)"
+    )
+    p.add_argument(
+        "--backend",
+        default=None,
+        choices=["pardiso", "pardiso32", "cholmod", "splu"],
+        help="direct linear-solver backend (default: $COUTURE_SOLVER_BACKEND, else the solver's own)",
+    )
     a = p.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s solver %(levelname)s %(message)s")
-    main(Config(bus=bus_config_from_args(a), name=a.name, solver=a.solver, max_seconds=a.max_seconds,
-         **({"backend": a.backend} if a.backend else {})))
+    main(
+        Config(
+            bus=bus_config_from_args(a),
+            name=a.name,
+            solver=a.solver,
+            max_seconds=a.max_seconds,
+            **({"backend": a.backend} if a.backend else {}),
+        )
+    )

@@ -76,13 +76,31 @@ def main(config: Config) -> None:
         lock = threading.Lock()
         state = {"generation": -1, "dragging": False, "abort": False}
 
-        def drape_msg(level: str, x: np.ndarray, res: float, it: int, wall: float,
-                      converged: bool = False, diagnosis: str = "", final: bool = True) -> DrapeMsg:
+        def drape_msg(
+            level: str,
+            x: np.ndarray,
+            res: float,
+            it: int,
+            wall: float,
+            converged: bool = False,
+            diagnosis: str = "",
+            final: bool = True,
+        ) -> DrapeMsg:
             lm = service.levels[level]
-            return DrapeMsg(level=level, x=x.astype(np.float32), residual=float(res), iterations=int(it),
-                            solver=config.name, method=config.solver, wall_time_s=float(wall),
-                            converged=converged, diagnosis=diagnosis, generation=lm.mesh.generation,
-                            mesh_generation=lm.mesh_generation, final=final)
+            return DrapeMsg(
+                level=level,
+                x=x.astype(np.float32),
+                residual=float(res),
+                iterations=int(it),
+                solver=config.name,
+                method=config.solver,
+                wall_time_s=float(wall),
+                converged=converged,
+                diagnosis=diagnosis,
+                generation=lm.mesh.generation,
+                mesh_generation=lm.mesh_generation,
+                final=final,
+            )
 
         def should_abort() -> bool:
             return state["abort"] or node.stopping
@@ -92,12 +110,21 @@ def main(config: Config) -> None:
 
         def on_level(run: LevelRun) -> None:
             r = run.result
-            pubs[run.level].put(drape_msg(run.level, r.x, r.residual, r.iterations, r.wall_time,
-                                          r.converged, r.diagnosis))
+            pubs[run.level].put(
+                drape_msg(run.level, r.x, r.residual, r.iterations, r.wall_time, r.converged, r.diagnosis)
+            )
             node.count(f"solves/{run.level}")
-            log.info("gen %d %s: residual %.2e after %d its in %.2f s (%s, from %s)%s",
-                     service.levels[run.level].mesh.generation, run.level, r.residual, r.iterations,
-                     r.wall_time, config.solver, run.warm_start, f" [{r.diagnosis}]" if r.diagnosis else "")
+            log.info(
+                "gen %d %s: residual %.2e after %d its in %.2f s (%s, from %s)%s",
+                service.levels[run.level].mesh.generation,
+                run.level,
+                r.residual,
+                r.iterations,
+                r.wall_time,
+                config.solver,
+                run.warm_start,
+                f" [{r.diagnosis}]" if r.diagnosis else "",
+            )
             if r.diagnosis and not r.converged and "abort" not in r.diagnosis.lower():
                 node.error(f"{run.level}: {r.diagnosis}")
 
@@ -106,8 +133,12 @@ def main(config: Config) -> None:
                 if state["dragging"] or not service.ready():
                     return
                 state["abort"] = False
-            service.run(should_abort=should_abort, on_progress=on_progress, on_level=on_level,
-                        progress_period_s=config.progress_period_s)
+            service.run(
+                should_abort=should_abort,
+                on_progress=on_progress,
+                on_level=on_level,
+                progress_period_s=config.progress_period_s,
+            )
 
         def take(matched: Matched[IncomingMesh]) -> None:
             if service.take(matched):
@@ -123,8 +154,9 @@ def main(config: Config) -> None:
             prolong = None
             if msg.fine_parent_tri is not None and msg.fine_bary is not None:
                 prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
-            out = service.offer_mesh(msg.level, msg.generation, msg.mesh_generation,
-                                     IncomingMesh(msg_to_mesh(msg), prolong), msg.design_id)
+            out = service.offer_mesh(
+                msg.level, msg.generation, msg.mesh_generation, IncomingMesh(msg_to_mesh(msg), prolong), msg.design_id
+            )
             if out.status == "stale":
                 node.count("stale_meshes")
             matched = out.matched
@@ -156,11 +188,20 @@ def main(config: Config) -> None:
                 mesh = lm.mesh
             model = ClothModel(mesh, design.fabric, scene_from_design(design))
             x0 = req.x_warm.numpy() if req.x_warm is not None else mesh.x0
-            r = get_solver(config.solver, **solver_options(config)).solve(model, np.array(x0), tol=req.tol, max_iters=req.max_iters,
-                                                max_seconds=req.max_seconds)
-            return SolveResultMsg(method=config.solver, level=req.level, mesh_generation=req.mesh_generation,
-                                  x=r.x, residual=r.residual, iterations=r.iterations, wall_time_s=r.wall_time,
-                                  converged=r.converged, diagnosis=r.diagnosis)
+            r = get_solver(config.solver, **solver_options(config)).solve(
+                model, np.array(x0), tol=req.tol, max_iters=req.max_iters, max_seconds=req.max_seconds
+            )
+            return SolveResultMsg(
+                method=config.solver,
+                level=req.level,
+                mesh_generation=req.mesh_generation,
+                x=r.x,
+                residual=r.residual,
+                iterations=r.iterations,
+                wall_time_s=r.wall_time,
+                converged=r.converged,
+                diagnosis=r.diagnosis,
+            )
 
         bus.subscribe("pattern", on_pattern)
         bus.subscribe("mesh/coarse", on_mesh)

@@ -58,8 +58,15 @@ class UIAdapter:
     """Wires one CoutureUI to one bus. Separate from :func:`main` so tests can
     drive it with their own Node."""
 
-    def __init__(self, node: Node, ui: CoutureUI, name: str, *, bus_config: BusConfig | None = None,
-                 record_dir: Path = Path("out/recordings")):
+    def __init__(
+        self,
+        node: Node,
+        ui: CoutureUI,
+        name: str,
+        *,
+        bus_config: BusConfig | None = None,
+        record_dir: Path = Path("out/recordings"),
+    ):
         self.node, self.ui, self.name = node, ui, name
         self.bus_config = bus_config or BusConfig()
         self.record_dir = Path(record_dir)
@@ -89,8 +96,9 @@ class UIAdapter:
 
     # -- out
     def publish_design(self, design: Design) -> None:
-        self.pattern_pub.put(PatternMsg(design=design, source=self.name, generation=self.ui.generation,
-                                        design_id=uuid.uuid4().hex))
+        self.pattern_pub.put(
+            PatternMsg(design=design, source=self.name, generation=self.ui.generation, design_id=uuid.uuid4().hex)
+        )
         self.node.count("pattern_out")
 
     def publish_edit(self, edit: Edit) -> None:
@@ -134,10 +142,19 @@ class UIAdapter:
         self._show(msg)
 
     def _show(self, msg: DrapeMsg) -> None:
-        self.ui.show_drape(msg.x.numpy(), msg.level, msg.method, residual=msg.residual,
-                           error_estimate=msg.error_estimate, generation=msg.generation, solver=msg.solver,
-                           converged=msg.converged if msg.solver else None, diagnosis=msg.diagnosis,
-                           final=msg.final, edit_id=msg.edit_id)
+        self.ui.show_drape(
+            msg.x.numpy(),
+            msg.level,
+            msg.method,
+            residual=msg.residual,
+            error_estimate=msg.error_estimate,
+            generation=msg.generation,
+            solver=msg.solver,
+            converged=msg.converged if msg.solver else None,
+            diagnosis=msg.diagnosis,
+            final=msg.final,
+            edit_id=msg.edit_id,
+        )
         self.node.count("drape_in")
 
     def select_solver(self, name: str) -> None:
@@ -159,8 +176,10 @@ class UIAdapter:
         live = {n for n, a in self.live.items() if a}
         notes = []
         if not any(n.startswith("sensitivity") for n in live):
-            notes.append("Predictions are off (no sensitivity node is live): while dragging the pattern moves; "
-                         "the solver's drape is shown after release.")
+            notes.append(
+                "Predictions are off (no sensitivity node is live): while dragging the pattern moves; "
+                "the solver's drape is shown after release."
+            )
         solvers = sorted(n for n in live if n.startswith("solver"))
         if not solvers:
             notes.append("No solver node is live: the last drape stays on screen.")
@@ -184,10 +203,25 @@ class UIAdapter:
         connecting where this node connects (or to where it listens)."""
         cfg = self.bus_config
         connect = list(cfg.connect) or [e for e in cfg.listen if not e.endswith(":0")]
-        rec = BusConfig(session=cfg.session, connect=connect, listen=["tcp/127.0.0.1:0"], mode="peer",
-                        config_file=cfg.config_file, multicast=cfg.multicast)
-        return [sys.executable, "-m", "couture.recording", "--out", str(out), "--quiet",
-                "--name", f"{self.name}-recorder", *rec.to_args()]
+        rec = BusConfig(
+            session=cfg.session,
+            connect=connect,
+            listen=["tcp/127.0.0.1:0"],
+            mode="peer",
+            config_file=cfg.config_file,
+            multicast=cfg.multicast,
+        )
+        return [
+            sys.executable,
+            "-m",
+            "couture.recording",
+            "--out",
+            str(out),
+            "--quiet",
+            "--name",
+            f"{self.name}-recorder",
+            *rec.to_args(),
+        ]
 
     def start_recording(self) -> Path | None:
         if self.recorder is not None and self.recorder.poll() is None:
@@ -228,17 +262,22 @@ class UIAdapter:
         self.stop_recording()
 
     def on_status(self, msg: StatusMsg) -> None:
-        self.ui.set_node_status(msg.node, kind=msg.kind, state=msg.state, rates=msg.rates,
-                                last_error=msg.last_error)
+        self.ui.set_node_status(msg.node, kind=msg.kind, state=msg.state, rates=msg.rates, last_error=msg.last_error)
 
 
 def edit_msg(edit: Edit, generation: int) -> EditMsg:
     """The ``edit`` message of one gesture phase, for the design of ``generation``."""
     pick = edit.pick
     return EditMsg(
-        generation=generation, edit_id=edit.edit_id, phase=edit.phase, element=edit.element, dofs=list(edit.dofs),
-        d=Array.from_numpy(np.asarray(edit.d, np.float64)), param=edit.param,
-        picked_vertex=pick.vertex if pick else -1, picked_tri=pick.tri if pick else -1,
+        generation=generation,
+        edit_id=edit.edit_id,
+        phase=edit.phase,
+        element=edit.element,
+        dofs=list(edit.dofs),
+        d=Array.from_numpy(np.asarray(edit.d, np.float64)),
+        param=edit.param,
+        picked_vertex=pick.vertex if pick else -1,
+        picked_tri=pick.tri if pick else -1,
         picked_bary=Array.from_numpy(pick.bary) if pick else None,
         view_proj=Array.from_numpy(pick.view_proj) if pick and pick.view_proj is not None else None,
         viewport_px=list(pick.viewport_px) if pick and pick.viewport_px else [],
@@ -246,8 +285,7 @@ def edit_msg(edit: Edit, generation: int) -> EditMsg:
 
 
 def main(config: Config) -> None:
-    ui = CoutureUI(UIConfig(host=config.host, port=config.port, export_dir=config.export_dir),
-                   design=config.design)
+    ui = CoutureUI(UIConfig(host=config.host, port=config.port, export_dir=config.export_dir), design=config.design)
     with Node(config.name, config.bus, kind="ui") as node:
         url = ui.start()
         try:

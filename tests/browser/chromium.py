@@ -12,8 +12,14 @@ from typing import Callable, Iterator
 
 CHROMIUM = "/usr/bin/chromium"
 ARGS = [
-    "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
 ]
 ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts"
 
@@ -35,8 +41,13 @@ def browser_page(width: int = 1400, height: int = 800) -> Iterator[object]:
     try:
         with sync_playwright() as p:
             ctx = p.chromium.launch_persistent_context(
-                profile, executable_path=CHROMIUM, args=ARGS, headless=True,
-                viewport={"width": width, "height": height}, accept_downloads=True)
+                profile,
+                executable_path=CHROMIUM,
+                args=ARGS,
+                headless=True,
+                viewport={"width": width, "height": height},
+                accept_downloads=True,
+            )
             try:
                 page = ctx.pages[0] if ctx.pages else ctx.new_page()
                 yield page
@@ -63,6 +74,7 @@ def wait_until(cond: Callable[[], object], timeout: float = 60.0, page=None, ste
 
 def wait_camera(server, timeout: float = 60.0, page=None):
     """The first connected client of a viser server once its camera is known."""
+
     def ready():
         for c in server.get_clients().values():
             try:
@@ -72,6 +84,7 @@ def wait_camera(server, timeout: float = 60.0, page=None):
             except Exception:
                 pass
         return None
+
     return wait_until(ready, timeout, page)
 
 
@@ -82,8 +95,13 @@ def stable_camera(client, page=None, settle_s: float = 1.0, timeout: float = 30.
 
     def snap():
         c = client.camera
-        return np.concatenate([np.asarray(c.position, float), np.asarray(c.wxyz, float),
-                               [float(c.fov), float(c.image_width), float(c.image_height)]])
+        return np.concatenate(
+            [
+                np.asarray(c.position, float),
+                np.asarray(c.wxyz, float),
+                [float(c.fov), float(c.image_width), float(c.image_height)],
+            ]
+        )
 
     t0 = time.time()
     last, since = snap(), time.time()
