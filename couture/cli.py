@@ -309,8 +309,8 @@ class _DrapeProgress:
                 frac = math.log10(max(self.r0[level], r) / r) / span
                 # the fill keeps the best so far (a residual may rise for a while); the text shows the latest
                 bar.n = max(bar.n, int(round(100 * min(max(frac, 0.0), 1.0))))  # type: ignore[attr-defined]
-            bar.set_postfix_str(
-                f"residual {r:.2e} -> {self.tol[level]:.0e}, {msg.iterations} its",  # type: ignore[attr-defined]
+            bar.set_postfix_str(  # type: ignore[attr-defined]
+                f"residual {r:.2e} -> {self.tol[level]:.0e}, {msg.iterations} its",
                 refresh=True,
             )
         if msg.final:

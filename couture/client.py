@@ -227,13 +227,13 @@ class Client:
         """Send one edit message (press / drag / release); returns it (with its edit_id)."""
         msg = EditMsg(
             edit_id=edit_id or uuid.uuid4().hex[:12],
-            phase=phase,
-            element=element,  # type: ignore[arg-type]
+            phase=phase,  # type: ignore[arg-type]
+            element=element,
             dofs=list(dofs or ["x", "y"]),
             d=Array.from_numpy(np.asarray(d, np.float64)),
             generation=self._seen_generation if generation is None else generation,
-            **extra,
-        )  # type: ignore[arg-type]
+            **extra,  # type: ignore[arg-type]
+        )
         self._edit_pub.put(msg)
         return msg
 

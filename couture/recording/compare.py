@@ -333,8 +333,8 @@ def _compare_values(
     tr: TopicReport,
     key: str,
     devs: list[str],
-    skip: set[str] = frozenset(),
-    cap: float = math.inf,  # type: ignore[assignment]
+    skip: set[str] = frozenset(),  # type: ignore[assignment]
+    cap: float = math.inf,
     ignore: set[str] = IGNORED_FIELDS,
 ) -> None:
     if isinstance(gv, msgspec.Struct) and not isinstance(gv, Array):
