@@ -161,14 +161,12 @@ def polish_prolongated(
     with barycentric ``bary[i]``). Returns a new (n_fine, 3) array.
 
     Why: the plain interpolation is far from fine equilibrium although the coarse
-    drape is converged. Measured on the default skirt (coarse 1.6k / fine 10k
-    vertices, coarse at 1e-3) it starts the fine solve at relative residual
-    ~3.1e4, dominated by seams (249 N) and contact (142 N) (membrane 0.37 N,
-    gravity 0.009 N): (1) the fine seam vertices of two sewn panels land on
-    different coarse chords, so the stiff fine seam springs (5000 mu) gap;
-    (2) fine vertices inside coarse triangles lie on chords cutting into the
-    convex body, and the per-vertex contact penalty wants a fine vertex (about
-    1/6 of a coarse vertex's load) shallower than a coarse one.
+    drape is converged, its residual dominated by seams and contact: (1) the fine
+    seam vertices of two sewn panels land on different coarse chords, so the
+    stiff fine seam springs (5000 mu) gap; (2) fine vertices inside coarse
+    triangles lie on chords cutting into the convex body, and the per-vertex
+    contact penalty wants a fine vertex (about 1/6 of a coarse vertex's load)
+    shallower than a coarse one.
 
     What:
     1. contact: the coarse normal contact force per unit mass, interpolated
@@ -189,21 +187,11 @@ def polish_prolongated(
     model without seams or without body (either level) skips that step; rows
     that are not finite keep their input.
 
-    Measured on the default skirt (coarse Newton drape at 1e-3): relative
-    residual 3.1e4 -> 43 in 10-35 ms (shared 2-core machine); seams 249 -> 0 N
-    (max gap 1.4 mm -> 1e-11 m), contact 142 -> 0.10 N, deepest fine
-    penetration of the offset layer 2.6 mm -> 0.046 mm (coarse: 0.10 mm).
-    What is left is membrane (0.41 N): the coarse shape is not the fine
-    equilibrium. Local Newton on the seam vertices (-> 160) or one full
-    Newton step (-> 2000, 11 s) make it worse; that is the fine solver's
-    work. The fine solves do not get faster: the drape they reach lies 3 mm
-    rms / 19 mm max from either start, the polish moves 0.4 mm rms, and the
-    solvers remove the stiff seam/contact error of the plain start within
-    ~8 s. Kinetic (60 s cap, two runs per start): relative residual 1 after
-    17-21 s from either start, 0.1 after 27-30 s, 0.009-0.022 at 60 s, 1e-3
-    not reached; Newton (steps 1-2 only; step 3 moves the skirt's start by
-    < 30 um): 1 at 13 s vs 14 s, 0.1 at 19 s vs 23 s, 0.011 vs 0.014 at 60 s,
-    plain vs polished. Shared 2-core machine, noisy.
+    On the default skirt this removes the seam and contact error (seam gaps to
+    round-off, the deepest fine penetration below the coarse one); what is left
+    is membrane force, since the coarse shape is not the fine equilibrium: that
+    is the fine solver's work (local Newton on the seam vertices or one full
+    Newton step here made the start worse).
     """
     x0 = np.asarray(x_fine, dtype=np.float64)
     x = x0.copy()

@@ -21,15 +21,12 @@ vertex (a trust region: dt, hence the factorization, stays). At large dt the
 step from rest is a pseudo-transient-continuation Newton step
 (K + M/dt²) Δx = f. ``adaptive=False`` gives SC's fixed steps (5 ms, IC(0)).
 
-Measured (default skirt, 1.6k vertices, 2 shared cores, same session): from
-placement to relative residual 1e-4, frictionless: SC 5 ms + IC(0) 19.9 s,
-adaptive 19.5 s; friction on: adaptive 11.3 s, SC 5 ms stalls at 1e-2
-(anchors engage on moving cloth and creep). Both needed the C² contact law
-and B-spline body SDF (couture.cloth): with the C¹ penalty and trilinear SDF
-every solver chattered at residual ~0.5. dt_max = 0.1 s, not more: on a
-crumpled sheet (random start, tests/test_solvers_slow.py) dt up to 10 s made
-the projected-Hessian steps crawl (not converged in 120 s; 0.1 s: 69 s;
-SC 5 ms: 35 s).
+Both need the C² contact law and the B-spline body SDF (couture.cloth): with
+a C¹ penalty and a trilinear SDF every solver chattered at residual ~0.5.
+dt_max = 0.1 s, not more: on a crumpled sheet (random start,
+tests/test_solvers_slow.py) larger steps made the projected-Hessian steps
+crawl. SC's fixed 5 ms steps stall with friction on (anchors engage on moving
+cloth and creep); ``couture bench solver`` compares the two.
 
 Linear solves. 'direct' (default): conjugate gradients preconditioned by a
 sparse Cholesky factorization (CHOLMOD / PARDISO / SuperLU, see linalg) of an

@@ -9,14 +9,17 @@ of K, i.e. pure Newton) and shortens ×10 when the factorization fails, the
 direction is not a descent direction or the line search fails; it lengthens
 again after full steps. The term only shapes the path: the fixed point is f = 0.
 
-Hessian ('auto', default): the PSD-projected stiffness far from equilibrium,
-the true (unprojected) membrane Hessian once the relative residual is below
-``true_below`` (1e-2), falling back to the projected one for a step whose
-factorization fails (indefinite: compressed regions about to buckle) or whose
-line search fails. Why: the projected Hessian differs from the true one where
-the membrane is compressed, so projected-only Newton converges linearly there
-(default skirt: 3.5e-3 after 360 iterations / 30 s); from that state the true
-Hessian reached 1e-4 in 9.5 s (measured, same machine and run conditions).
+Hessian ('auto', default): the PSD-projected stiffness far from equilibrium;
+the true Hessian (membrane unprojected, the body's curvature in the contact
+term) once the relative residual is below ``true_below`` (1e-2) or the solve
+crawls (its residual not halved in ``crawl_window`` iterations while below
+``true_until``), kept until the residual exceeds ``true_until``. Where the true
+Hessian is indefinite (compressed regions about to buckle, a fold that wants
+to turn), a mass shift M/h_true² makes it definite (h_true shortened ×10 per
+failed try, relaxed ×3 after full steps, down to ``shift_floor``); only then
+does a step fall back to the projected Hessian. Why: the projected Hessian is
+stiffer than the true one exactly along compression and soft modes, so
+projected-only Newton converges linearly there, in tiny steps.
 
 Friction: ``common.FrictionSchedule`` (anchors once the residual is below
 ``friction_after`` or the solve crawls; slips of anchors beyond mu_s every
