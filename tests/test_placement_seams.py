@@ -1,4 +1,4 @@
-"""Initial placement (issue 4): seams start nearly closed, the garment starts
+"""Initial placement: seams start nearly closed, the garment starts
 outside the body; diamond darts (hole segments) are sewn.
 
 Gaps are |x0[emitter] - receiving point| of the coarse mesh's seam springs.

@@ -1,4 +1,4 @@
-"""A from-scratch drape of every sloper reaches a dressed equilibrium (issue 4).
+"""A from-scratch drape of every sloper reaches a dressed equilibrium.
 
 Coarse (400 vertices), default fabric, mannequin with friction, from the
 wrap placement. Dressed: relative residual <= 1e-3, no vertex more than 2 mm

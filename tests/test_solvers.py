@@ -1,4 +1,4 @@
-"""Equilibrium solvers (issue 3): agreement, accuracy, robustness at the extremes, diagnoses.
+"""Equilibrium solvers: agreement, accuracy, robustness at the extremes, diagnoses.
 
 Scenes use the real couture.cloth.ClothModel (y up, gravity -y); builders in
 tests/solver_testmodel.py. Fast: small meshes; heavier scenes in

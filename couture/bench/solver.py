@@ -93,7 +93,7 @@ def _row(solver_name, level, model, res, rss0, extra=None):
 
 
 VARIANTS = {
-    # SC's configuration (fixed 5 ms steps, IC(0)-PCG): the kinetic solver before issue 3's rework
+    # SC's configuration (fixed 5 ms steps, IC(0)-PCG), for comparison with the adaptive default
     "kinetic-sc5ms": ("kinetic", {"adaptive": False, "preconditioner": "ic0"}),
 }
 

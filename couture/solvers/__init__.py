@@ -1,4 +1,4 @@
-"""Swappable equilibrium solvers (issue 3): one signature, see :mod:`couture.solvers.base`.
+"""Swappable equilibrium solvers: one signature, see :mod:`couture.solvers.base`.
 
     from couture.solvers import get_solver
     result = get_solver("kinetic").solve(model, x0, tol=1e-4)
