@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
+
+from .base import SolveResult
 
 
 def pinned_positions(model, x: np.ndarray) -> np.ndarray:
@@ -188,24 +192,60 @@ def verdict(model, x: np.ndarray, tol: float) -> tuple[bool, float, str]:
 
 
 def finish(
-    model, x: np.ndarray, r: float, loop_diag: str, best: BestState, tol: float
-) -> tuple[np.ndarray, float, bool, str]:
+    model,
+    x: np.ndarray,
+    r: float,
+    loop_diag: str,
+    best: BestState,
+    tol: float,
+    *,
+    method: str,
+    iterations: int,
+    t_start: float,
+    history: list[tuple[float, float]],
+    stats: dict,
+) -> SolveResult:
     """What a solver returns: its last state, or the best one seen when that is
     better (a stall, a cap, a divergence, a friction update that made things
     worse), with ``converged`` decided by ``verdict`` from fresh forces.
-    Returns (x, residual, converged, diagnosis)."""
+    ``loop_diag``: empty when the loop converged, else why it stopped."""
     note = ""
     stopped = loop_diag.startswith("stopped by callback") and finite(x)  # the caller's own choice of state
     if loop_diag and not stopped and best.x is not None and (not finite(x) or not np.isfinite(r) or best.r < r):
         note = f"; returned the best state seen (residual {best.r:.3g} at iteration {best.it}, last {r:.3g})"
         x = best.restore()
     ok, r_fresh, why = verdict(model, x, tol)
-    if ok:
-        return x, r_fresh, True, ""
-    diag = loop_diag or why
-    if loop_diag and why and not why.startswith("residual"):
-        diag = f"{loop_diag}; {why}"
-    return x, r_fresh, False, diag + note
+    diag = ""
+    if not ok:
+        diag = loop_diag or why
+        if loop_diag and why and not why.startswith("residual"):
+            diag = f"{loop_diag}; {why}"
+        diag += note
+    return SolveResult(
+        x=x,
+        residual=float(r_fresh),
+        iterations=iterations,
+        wall_time=time.perf_counter() - t_start,
+        converged=ok,
+        method=method,
+        diagnosis=diag,
+        history=history,
+        stats=stats,
+    )
+
+
+def bad_start(method: str, x: np.ndarray, stats: dict) -> SolveResult:
+    """The result for a start that is not finite (NaN or inf positions)."""
+    return SolveResult(
+        x=np.nan_to_num(x),
+        residual=float("inf"),
+        iterations=0,
+        wall_time=0.0,
+        converged=False,
+        method=method,
+        diagnosis="diverged: non-finite initial positions",
+        stats=stats,
+    )
 
 
 class FrictionSchedule:

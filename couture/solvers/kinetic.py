@@ -70,6 +70,7 @@ from .common import (
     FrictionSchedule,
     ResidualScale,
     Watch,
+    bad_start,
     energy_and_forces,
     energy_round_off,
     finish,
@@ -260,16 +261,7 @@ class KineticSolver:
         watch = Watch(self.stall_window)
 
         if not finite(x):
-            return SolveResult(
-                x=np.nan_to_num(x),
-                residual=float("inf"),
-                iterations=0,
-                wall_time=0.0,
-                converged=False,
-                method=self.name,
-                diagnosis="diverged: non-finite initial positions",
-                stats=stats,
-            )
+            return bad_start(self.name, x, stats)
 
         best = BestState(model)
         ke_hist = [0.0, 0.0]
@@ -476,16 +468,16 @@ class KineticSolver:
         if pre is not None:
             stats["ic_shift"] = pre.shift
             stats["ic_retries"] = pre.retries
-        x, r, converged, diag = finish(model, x, r, "" if converged else diag, best, tol)
-        wall = time.perf_counter() - t_start
-        return SolveResult(
-            x=x,
-            residual=float(r),
-            iterations=it,
-            wall_time=wall,
-            converged=converged,
+        return finish(
+            model,
+            x,
+            r,
+            "" if converged else diag,
+            best,
+            tol,
             method=self.name,
-            diagnosis=diag,
+            iterations=it,
+            t_start=t_start,
             history=history,
             stats=stats,
         )

@@ -43,6 +43,7 @@ from .common import (
     FrictionSchedule,
     ResidualScale,
     Watch,
+    bad_start,
     energy_round_off,
     finish,
     finite,
@@ -151,16 +152,7 @@ class NewtonSolver:
         )
         history: list[tuple[float, float]] = []
         if not finite(x):
-            return SolveResult(
-                x=np.nan_to_num(x),
-                residual=float("inf"),
-                iterations=0,
-                wall_time=0.0,
-                converged=False,
-                method=self.name,
-                diagnosis="diverged: non-finite initial positions",
-                stats=stats,
-            )
+            return bad_start(self.name, x, stats)
         scale = float(np.linalg.norm(np.ptp(x, axis=0))) or 1.0
         max_step = self.max_step or 0.25 * scale
         h = self.h0
@@ -378,16 +370,16 @@ class NewtonSolver:
         stats["levenberg_h"] = h
         stats.update(friction_checks=fric.checks, slipped=fric.slipped, friction_excess_N=fric.excess)
         self._factor = factor
-        x, r, converged, diag = finish(model, x, r, "" if converged else diag, best, tol)
-        wall = time.perf_counter() - t_start
-        return SolveResult(
-            x=x,
-            residual=float(r),
-            iterations=it,
-            wall_time=wall,
-            converged=converged,
+        return finish(
+            model,
+            x,
+            r,
+            "" if converged else diag,
+            best,
+            tol,
             method=self.name,
-            diagnosis=diag,
+            iterations=it,
+            t_start=t_start,
             history=history,
             stats=stats,
         )

@@ -32,7 +32,7 @@ import numpy as np
 
 from . import kernels
 from .base import ProgressCallback, SolveResult
-from .common import finite, pinned_positions
+from .common import bad_start, finite, pinned_positions
 
 # ½ k_s (d0 (1 - cos ½))² = ½ k_b 3|e|²/(A0+A1) · c · 1² at a 1-rad fold (c = 8/27, the model's constant)
 _FOLD = 1.0 - np.cos(0.5)
@@ -146,16 +146,7 @@ class VerletSolver:
             assembly_s=0.0, linear_solve_s=0.0, projection_s=0.0, steps=0, velocity_resets=0, own_residual=float("nan")
         )
         if not finite(x):
-            return SolveResult(
-                x=np.nan_to_num(x),
-                residual=float("inf"),
-                iterations=0,
-                wall_time=0.0,
-                converged=False,
-                method=self.name,
-                diagnosis="diverged: non-finite initial positions",
-                stats=stats,
-            )
+            return bad_start(self.name, x, stats)
         mass = np.maximum(np.asarray(model.mass, np.float64), 1e-300)
         free = sm.free
         inv_m = np.where(free, 1.0 / mass, 0.0)
