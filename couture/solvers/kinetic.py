@@ -59,6 +59,7 @@ best state it saw (``common.BestState``).
 
 from __future__ import annotations
 
+import logging
 import time
 from typing import Any
 
@@ -87,6 +88,8 @@ from .linalg import (
     resolve_backend,
     seam_first_order,
 )
+
+log = logging.getLogger(__name__)
 
 
 class KineticSolver:
@@ -441,6 +444,16 @@ class KineticSolver:
             dv_prev = dv
             v = v_new
             x += step
+            log.debug(
+                "kinetic step %d: r %.3e E %.9e dt %.3g alpha %.3g cg %d |step| %.3g",
+                it,
+                r,
+                E,
+                dt,
+                alpha,
+                cg_it,
+                big,
+            )
             it += 1
             if self.adaptive:
                 E, f = E_new, f_new
