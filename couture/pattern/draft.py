@@ -319,10 +319,8 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
                             f"segment {pd.name}:{sg.name} ({L:.3f} m)",
                         )
                     spans.append((ul, ur, ln, d))
-                order = sorted(range(len(spans)), key=lambda i: spans[i][0])
-                if order != sorted(range(len(spans)), key=lambda i: spans[i][3].id):
-                    pass  # order by position; ids only fix the count layout, which is symmetric
-                spans = [spans[i] for i in order]
+                # darts in the order they sit along the segment (their ids say nothing about it)
+                spans.sort(key=lambda span: span[0])
                 for (_, ur0, _, d0), (ul1, _, _, d1) in zip(spans, spans[1:], strict=False):
                     if ul1 <= ur0:
                         raise PatternError(d1.id, f"dart overlaps dart {d0.id!r} on {pd.name}:{sg.name}")
