@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import enum
 import importlib
-import json
 import logging
 import math
 import pkgutil
@@ -14,6 +13,9 @@ import sys
 from pathlib import Path
 
 import couture.bench
+
+DEFAULT_UI_PORT = 8080
+"""where ``couture up`` serves its UI page when that port is free"""
 
 BENCHES = sorted(m.name for m in pkgutil.iter_modules(couture.bench.__path__))
 """every module of couture.bench is a benchmark with a main(argv)"""
@@ -39,7 +41,13 @@ def _parser() -> argparse.ArgumentParser:
         help="solver nodes to run (several for side-by-side comparison)",
     )
     up.add_argument("--ui-host", default="127.0.0.1")
-    up.add_argument("--ui-port", type=int, default=8080)
+    up.add_argument(
+        "--ui-port",
+        type=int,
+        default=None,
+        help=f"port of the UI page (the views take the next two); default {DEFAULT_UI_PORT}, or the first free "
+        "ports above it when another session holds it. A port given here that is taken is an error.",
+    )
     add_bus_args(up)
 
     record_parser(sub.add_parser("record", help="record couture/** messages to MCAP"))
@@ -149,10 +157,11 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.cmd == "up":
         from couture import supervisor
 
+        ui_port = 0 if args.no_ui else ui_port_for(args.ui_host, args.ui_port)
         nodes = supervisor.default_nodes(
-            solvers=args.solver, ui=not args.no_ui, ui_host=args.ui_host, ui_port=args.ui_port, record=args.record
+            solvers=args.solver, ui=not args.no_ui, ui_host=args.ui_host, ui_port=ui_port, record=args.record
         )
-        url = "" if args.no_ui else f"http://{args.ui_host}:{args.ui_port}"
+        url = "" if args.no_ui else f"http://{args.ui_host}:{ui_port}/"
         return supervisor.main(supervisor.SupervisorConfig(bus=bus_config_from_args(args), nodes=nodes, ui_url=url))
 
     if args.cmd == "record":
@@ -239,6 +248,31 @@ def _dispatch(args: argparse.Namespace) -> int:
     raise AssertionError(args.cmd)
 
 
+def ui_port_for(host: str, asked: int | None) -> int:
+    """The UI page's port for ``couture up``: ``asked`` when it is free (a
+    taken one raises RuntimeError naming it: the user chose it), else
+    DEFAULT_UI_PORT when it and the views' two ports after it are free, else
+    the first such block above it. The UI node binds it, or, should another
+    process take it meanwhile, the next free one (it prints its own URL)."""
+    from couture.bus.ports import free_port_block, port_is_free
+
+    if asked is not None:
+        if not port_is_free(asked, host):
+            raise RuntimeError(
+                f"--ui-port {asked}: port {asked} on {host} is already in use (another couture up?); "
+                "choose another port, or leave --ui-port out to take a free one"
+            )
+        return asked
+    port = free_port_block(DEFAULT_UI_PORT, 3, host)
+    if port != DEFAULT_UI_PORT:
+        print(
+            f"[up] port {DEFAULT_UI_PORT} is in use (another couture up?): this session's UI is on port {port}",
+            file=sys.stderr,
+            flush=True,
+        )
+    return port
+
+
 class DrapeExit(enum.IntEnum):
     """Exit status of ``couture drape``; meanings in ``_DRAPE_EXIT_TEXT`` (shown by --help)."""
 
@@ -255,8 +289,9 @@ _DRAPE_EXIT_TEXT = {
     DrapeExit.ERROR: "error: missing file, a node failed, no matching mesh",
     DrapeExit.USAGE: "bad command line",
     DrapeExit.NOT_CONVERGED: "the solver stopped short of its tolerance: drape written anyway, diagnosis printed",
-    DrapeExit.BAD_DESIGN: "bad design: not a couture/design/v1 file, or the remesher rejected it "
-    "(reason printed); no drape written",
+    DrapeExit.BAD_DESIGN: "bad design: not a couture/design/v1 file (file, line and column of a JSON error "
+    "printed), or a node rejected it (the field, its value and the allowed range printed, within about a "
+    "second); no drape written",
     DrapeExit.TIMEOUT: "no final fine drape within --timeout; no drape written",
 }
 DRAPE_EXIT_HELP = "exit status:\n" + "\n".join(f"  {int(c)}  {t}" for c, t in _DRAPE_EXIT_TEXT.items())
@@ -366,6 +401,7 @@ def drape(
 
     from couture import supervisor
     from couture.client import Client, PatternRejected, load_design
+    from couture.jsonout import dumps
     from couture.solvers.service import DEFAULT_TOL
 
     if not verbose:
@@ -439,8 +475,8 @@ def drape(
         export_dxf(drafted, out_dir / "pattern.dxf")
         export_svg(drafted, out_dir / "pattern.svg")
         export_pdf(drafted, out_dir / "pattern.pdf")
-        (out_dir / "drape.json").write_text(
-            json.dumps(
+        (out_dir / "drape.json").write_text(  # standard JSON: a non-finite residual is null
+            dumps(
                 {
                     "generation": d.generation,
                     "solver": d.solver,

@@ -6,17 +6,20 @@
         x = drape.x.numpy()
 
 Timeouts raise :class:`TimeoutError` naming the topic that never answered and
-the nodes that were (not) live, never a made-up result.
+the nodes that were (not) live, never a made-up result. A design that a node
+refuses (``rejected`` topic: the remesher's validation, a solver's fabric
+check) ends the wait for its drape at once with :class:`PatternRejected`,
+which names the element and the reason.
 """
 
 from __future__ import annotations
 
 import os
 import queue
-import re
 import threading
 import time
 import uuid
+from collections import OrderedDict
 from pathlib import Path
 from typing import Callable
 
@@ -29,7 +32,16 @@ from couture.mesh import GarmentMesh
 from schemas.arrays import Array, as_array
 from schemas.convert import mesh_to_msg
 from schemas.design import Design
-from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, SolveRequestMsg, SolveResultMsg, StatusMsg
+from schemas.messages import (
+    DrapeMsg,
+    EditMsg,
+    MeshMsg,
+    PatternMsg,
+    RejectedMsg,
+    SolveRequestMsg,
+    SolveResultMsg,
+    StatusMsg,
+)
 
 EXPECTED_PRODUCERS = {
     "mesh": "remesher",
@@ -39,25 +51,30 @@ EXPECTED_PRODUCERS = {
 }
 
 
-# what nodes/remesher/main.py writes into its status when validation fails;
-# the end-to-end test of ``couture drape`` on a bad design pins the format
-_REJECTED = re.compile(r"pattern generation (\d+) rejected: (.*)", re.S)
-
-
 class PatternRejected(ValueError):
-    """The remesher rejected a design; ``reason`` names the bad element."""
+    """A node (the remesher, a solver) rejected a design: ``element`` is the
+    field or pattern element ('fabric.area_density', 'param:length'; '' when
+    unknown), ``reason`` the whole message with the value and allowed range."""
 
-    def __init__(self, generation: int, reason: str, node: str = "remesher") -> None:
+    def __init__(self, generation: int, reason: str, node: str = "remesher", element: str = "") -> None:
         super().__init__(f"{node} rejected pattern generation {generation}: {reason}")
         self.generation = generation
         self.reason = reason
         self.node = node
+        self.element = element
+
+    @classmethod
+    def from_msg(cls, msg: RejectedMsg) -> "PatternRejected":
+        return cls(msg.generation, msg.reason, msg.node, msg.element)
 
 
 def load_design(path: str | os.PathLike) -> Design:
     """Read a pattern JSON file (``couture/design/v1``); a top-level ``schema``
-    key, if present, must name that type."""
-    raw = msgspec.json.decode(Path(path).read_bytes())
+    key, if present, must name that type. A syntax error raises ValueError
+    (:class:`couture.pattern.PatternError`) naming the file, line and column."""
+    from couture.pattern.io import parse_json
+
+    raw = parse_json(Path(path).read_bytes(), str(path))
     if isinstance(raw, dict) and "schema" in raw:
         if raw["schema"] != "couture/design/v1":
             raise ValueError(f"{path}: schema {raw['schema']!r} is not couture/design/v1")
@@ -95,6 +112,10 @@ class Client:
         """latest status message per node name"""
         self._seen_generation = 0
         self._own = OwnDesigns()
+        self._asked: OrderedDict[int, str] = OrderedDict()
+        """generation asked for -> design_id of this client's newest design that asked for it"""
+        self._rejected: OrderedDict[str, RejectedMsg] = OrderedDict()
+        """design_id (or '#<generation>' when it had none) -> the first rejection of that design"""
         self._followers: list[queue.SimpleQueue] = []
         self._bus: Bus | None = None
 
@@ -115,6 +136,7 @@ class Client:
             self.bus.subscribe("mesh/*", self._on_mesh, MeshMsg)
             self.bus.subscribe("pattern", self._on_pattern, PatternMsg)
             self.bus.subscribe("status/*", self._on_status, StatusMsg)
+            self.bus.subscribe("rejected", self._on_rejected, RejectedMsg)
         except BaseException:
             self.bus.close()
             raise
@@ -146,6 +168,17 @@ class Client:
             self.status[msg.node] = msg
             for q in self._followers:
                 q.put(msg)
+
+    def _on_rejected(self, msg: RejectedMsg) -> None:
+        with self._cond:
+            key = msg.design_id or f"#{msg.generation}"
+            if key not in self._rejected:
+                self._rejected[key] = msg
+                while len(self._rejected) > 256:
+                    self._rejected.popitem(last=False)
+            for q in self._followers:
+                q.put(msg)
+            self._cond.notify_all()
 
     def _on_pattern(self, msg: PatternMsg) -> None:
         with self._cond:
@@ -183,6 +216,10 @@ class Client:
             gen = self._seen_generation + 1
             self._seen_generation = gen
             self._own.add(design_id, gen)
+            self._asked[gen] = design_id
+            self._asked.move_to_end(gen)
+            while len(self._asked) > 256:
+                self._asked.popitem(last=False)
         self._pattern_pub.wait_matching(wait_subscribers_s)
         self._pattern_pub.put(
             PatternMsg(design=design, generation=gen, design_id=design_id, source="client", name=name)
@@ -204,6 +241,8 @@ class Client:
         deadline = time.monotonic() + timeout
         with self._cond:
             while (g := self._own.given(requested)) is None:
+                if (rej := self._rejection_locked(requested)) is not None:
+                    raise rej
                 left = deadline - time.monotonic()
                 if left <= 0:
                     raise TimeoutError(
@@ -250,7 +289,8 @@ class Client:
         generation >= ``generation`` (any if None) that arrives or has arrived
         since the client opened; for a generation this client's
         :meth:`publish_pattern` returned, a drape of exactly that design.
-        Raises TimeoutError naming what was missing."""
+        Raises :class:`PatternRejected` as soon as a node rejects that design,
+        TimeoutError naming what was missing after ``timeout`` [s]."""
         if kind not in self._drapes:
             raise ValueError(f"kind must be one of {list(self._drapes)}, got {kind!r}")
         deadline = time.monotonic() + timeout
@@ -270,6 +310,8 @@ class Client:
 
         with self._cond:
             while (m := find()) is None:
+                if generation is not None and (rej := self._rejection_locked(generation)) is not None:
+                    raise rej
                 left = deadline - time.monotonic()
                 if left <= 0:
                     break
@@ -302,14 +344,24 @@ class Client:
         )
 
     def rejection(self, generation: int) -> PatternRejected | None:
-        """The remesher's rejection of ``generation`` if its status reports one."""
+        """A node's rejection of the design that asked for ``generation``, if
+        one arrived: for a generation this client's :meth:`publish_pattern`
+        returned, the rejection of exactly that design (by ``design_id``)."""
         with self._cond:
-            statuses = list(self.status.values())
-        for st in statuses:
-            m = _REJECTED.match(st.last_error) if st.kind == "remesher" else None
-            if m is not None and int(m.group(1)) == generation:
-                return PatternRejected(generation, m.group(2), st.node)
-        return None
+            return self._rejection_locked(generation)
+
+    def rejections(self) -> list[RejectedMsg]:
+        """Every rejection received so far (the last 256), oldest first."""
+        with self._cond:
+            return list(self._rejected.values())
+
+    def _rejection_locked(self, generation: int) -> PatternRejected | None:
+        design_id = self._asked.get(generation)
+        if design_id is not None:
+            msg = self._rejected.get(design_id)
+        else:  # not ours: a rejection of a design that asked for that number
+            msg = next((m for m in reversed(self._rejected.values()) if m.generation == generation), None)
+        return None if msg is None else PatternRejected.from_msg(msg)
 
     def follow_drape(
         self, generation: int, timeout: float = 60.0, *, on_drape: Callable[[DrapeMsg], None] | None = None
@@ -319,8 +371,9 @@ class Client:
         Every drape/coarse and drape/fine of that generation (progress
         snapshots and each level's final) is passed to ``on_drape`` as it
         arrives, in this thread, oldest first. Raises :class:`PatternRejected`
-        as soon as the remesher's status reports the design rejected (within
-        its status period, about 1 s) and TimeoutError after ``timeout`` [s]."""
+        as soon as a node rejects the design (the ``rejected`` message, sent
+        the moment the remesher or a solver refuses it) and TimeoutError
+        after ``timeout`` [s]."""
         q: queue.SimpleQueue = queue.SimpleQueue()
         with self._cond:
             backlog = sorted((m for lv in ("coarse", "fine") for m in self._drapes[lv]), key=lambda m: m.stamp_ns)
@@ -336,9 +389,11 @@ class Client:
                     msg = q.get(timeout=left)
                 except queue.Empty:
                     break
-                if isinstance(msg, StatusMsg):
+                if isinstance(msg, RejectedMsg):
                     if (rej := self.rejection(generation)) is not None:
                         raise rej
+                    continue
+                if isinstance(msg, StatusMsg):
                     continue
                 if msg.generation != generation or msg.level not in ("coarse", "fine"):
                     continue

@@ -17,7 +17,9 @@ DESIGN_SCHEMA = "couture/design/v1"
 
 
 class Fabric(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
-    """Material of every panel (SC Table 1 ranges in the comments)."""
+    """Material of every panel (SC Table 1 ranges in the comments; the
+    allowed ranges, checked by the remesher and the solvers, are
+    ``couture.pattern.limits.FABRIC_LIMITS``)."""
 
     name: str = "cotton"
     stretch_stiffness: float = 20.0
@@ -73,7 +75,8 @@ class SceneFlags(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 
 
 class Resolution(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
-    """Target mesh sizes for cascadic refinement."""
+    """Target mesh sizes for cascadic refinement (each 50..250000,
+    ``couture.pattern.limits.RESOLUTION_LIMITS``)."""
 
     coarse_vertices: int = 1600
     fine_vertices: int = 10000

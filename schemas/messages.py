@@ -296,6 +296,34 @@ class StatusMsg(Message, kw_only=True):
     """last error text, '' if none"""
 
 
+class RejectedMsg(Message, kw_only=True):
+    """A design a node refused, and why. remesher (drafting, validation,
+    meshing), solver (a fabric or scene it cannot simulate) -> ui, clients.
+    Key ``rejected``.
+
+    Published at once, instead of meshes or drapes: a publisher waiting for
+    the drape of this design stops waiting. The header's ``generation`` is
+    the one the pattern asked for (a rejected design is given no number);
+    ``design_id`` names the design exactly."""
+
+    TYPE: ClassVar[str] = "couture/rejected/v1"
+    schema: str = "couture/rejected/v1"
+    node: str
+    """the node that rejected it ('remesher', 'solver-kinetic', ...)"""
+    design_id: str = ""
+    """the rejected pattern's ``design_id`` ('' when it had none)"""
+    element: str = ""
+    """what is wrong, as a path into the design or an edit element id:
+    'fabric.area_density', 'resolution.fine_vertices', 'param:length',
+    'sloper', a stroke id, 'panel:segment', 'seam:...'; '' when unknown"""
+    reason: str
+    """the whole message: the element, the offending value and the allowed range"""
+    name: str = ""
+    """the pattern's name (file stem), if it had one"""
+    source: str = ""
+    """who published the pattern ('ui', 'client', 'replay', ...)"""
+
+
 class SolveRequestMsg(Message, kw_only=True):
     """Solve to equilibrium. any client (pattern adjustment, sweeps, scripts) ->
     a solver, through the ``solve/<solver>`` queryable; mirrored on
@@ -365,6 +393,7 @@ MESSAGE_TYPES: tuple[type[Message], ...] = (
     MeshMsg,
     DrapeMsg,
     StatusMsg,
+    RejectedMsg,
     SolveRequestMsg,
     SolveResultMsg,
 )
@@ -536,6 +565,7 @@ __all__ = [
     "MeshMsg",
     "DrapeMsg",
     "StatusMsg",
+    "RejectedMsg",
     "SolveRequestMsg",
     "SolveResultMsg",
     "MESSAGE_TYPES",

@@ -16,7 +16,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from schemas.messages import DrapeMsg, EditMsg, MeshMsg, Message, PatternMsg, SolveRequestMsg, SolveResultMsg, StatusMsg
+from schemas.messages import (
+    DrapeMsg,
+    EditMsg,
+    MeshMsg,
+    Message,
+    PatternMsg,
+    RejectedMsg,
+    SolveRequestMsg,
+    SolveResultMsg,
+    StatusMsg,
+)
 
 
 @dataclass(frozen=True)
@@ -88,6 +98,17 @@ TOPICS: tuple[Topic, ...] = (
     Topic("drape/coarse", DrapeMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="solver"),
     Topic("drape/fine", DrapeMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="solver"),
     Topic("status/*", StatusMsg, PLAIN, recorded=True, replayed=False, compared=False, publisher="every node"),
+    # Sent at once (a client waiting for that design's drape stops waiting), and
+    # kept like the patterns, so a late joiner learns which recent designs were refused.
+    Topic(
+        "rejected",
+        RejectedMsg,
+        Delivery(history=8, express=True),
+        recorded=True,
+        replayed=False,
+        compared=False,
+        publisher="remesher, solver",
+    ),
     Topic(
         "solve/request",
         SolveRequestMsg,

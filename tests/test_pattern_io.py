@@ -23,7 +23,7 @@ from couture.pattern.io import (
     save_design,
 )
 from couture.pattern.validate import validate
-from schemas.design import Design, Sloper
+from schemas.design import Design, Fabric, Sloper
 
 EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "couture/pattern/examples").glob("*.json"))
 
@@ -44,10 +44,50 @@ def test_json_round_trip_and_schema(tmp_path):
     # the schema describes what we write: every top-level key is a known property
     props = schema["$defs"]["DesignFile"]["properties"]
     assert set(json.loads(design_to_json(d))) <= set(props)
-    with pytest.raises(PatternError, match="file"):
-        design_from_json(b'{"schema": "couture/design/v0", "design": {}}')
-    with pytest.raises(PatternError, match="file"):
-        design_from_json(b'{"schema": "couture/design/v1", "design": {"bogus": 1}}')
+    with pytest.raises(PatternError, match="^d.json: schema 'couture/design/v0'"):
+        design_from_json(b'{"schema": "couture/design/v0", "design": {}}', "d.json")
+    with pytest.raises(PatternError, match=r"^d.json: not a couture/design/v1 design: .*bogus"):
+        design_from_json(b'{"schema": "couture/design/v1", "design": {"bogus": 1}}', "d.json")
+
+
+@pytest.mark.parametrize(
+    "text, at, what",
+    [
+        # `at`: the text from where the error is (its first character's line and column are named)
+        ('{"schema": "couture/design/v1",\n "design": {"fabric": {"area_density": 0.1,}}}', "}}}", "trailing comma"),
+        ('{"schema": "couture/design/v1",\n\n  "design": {"fabric": {"stretch_stiffness": NaN}}}', "NaN", "NaN"),
+        ('{"design":\n {"fabric": {"stretch_stiffness": -Infinity}}}', "-Inf", "Infinity"),
+        ('{"design": {"fabric": {"stretch_stiffness": 1e400}}}', "1e400", "beyond the float range"),
+        ('{"design": {"sloper": ', "", "truncated"),
+        ("", "", "empty"),
+    ],
+)
+def test_json_errors_name_file_line_and_column(tmp_path, text, at, what):
+    from couture.client import load_design as client_load_design
+
+    offset = text.index(at) if at else len(text)
+    line = text[:offset].count("\n") + 1
+    column = offset - (text.rfind("\n", 0, offset) + 1) + 1
+    path = tmp_path / "bad.json"
+    path.write_text(text)
+    for load in (load_design, client_load_design):  # the pattern library's and the CLI's / client's reader
+        with pytest.raises(ValueError) as e:
+            load(path)
+        msg = str(e.value)
+        assert msg.startswith(f"{path}:{line}:{column}: invalid JSON: ") and what in msg, msg
+
+
+def test_written_json_is_standard():
+    from couture.jsonout import dumps
+
+    text = dumps({"residual": float("inf"), "r": [np.float32("nan"), np.float64(2.5)], "n": np.int64(3)})
+    assert json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} written")) == {
+        "residual": None,
+        "r": [None, 2.5],
+        "n": 3,
+    }
+    d = Design(fabric=Fabric(stretch_stiffness=float("nan")))
+    assert b"NaN" not in design_to_json(d) and b"Infinity" not in design_to_json(d)
 
 
 @pytest.mark.parametrize("units", ["mm", "in"])

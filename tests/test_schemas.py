@@ -19,6 +19,7 @@ from schemas import (
     EditMsg,
     MeshMsg,
     PatternMsg,
+    RejectedMsg,
     SchemaError,
     SolveRequestMsg,
     SolveResultMsg,
@@ -117,6 +118,10 @@ def any_msgs(draw):
         return draw(drape_msgs())
     if kind == "StatusMsg":
         return StatusMsg(**h, node=draw(text), pid=draw(ints), rates={"a": draw(finite)}, counters={"b": draw(ints)})
+    if kind == "RejectedMsg":
+        return RejectedMsg(
+            **h, node=draw(text), design_id=draw(text), element=draw(text), reason=draw(text), source=draw(text)
+        )
     if kind == "SolveRequestMsg":
         mm = draw(mesh_msgs())
         return SolveRequestMsg(
@@ -150,6 +155,7 @@ def test_all_types_covered_by_round_trip_strategy():
         "MeshMsg",
         "DrapeMsg",
         "StatusMsg",
+        "RejectedMsg",
         "SolveRequestMsg",
         "SolveResultMsg",
     }

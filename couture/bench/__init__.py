@@ -8,9 +8,10 @@ plots beside it. The figures live in those files, not in docstrings.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import Any
+
+from couture.jsonout import dumps
 
 RESULTS_DIR = Path("bench/results")
 """default results folder, relative to the working directory"""
@@ -28,9 +29,10 @@ def add_out_arg(parser: argparse.ArgumentParser) -> None:
 
 
 def write_results(out_dir: Path | str, name: str, results: Any, **json_kw: Any) -> Path:
-    """Write ``results`` as ``<out_dir>/<name>.json`` (the folder is created); returns the path."""
+    """Write ``results`` as ``<out_dir>/<name>.json`` (the folder is created;
+    standard JSON: NaN and infinities as null); returns the path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{name}.json"
-    path.write_text(json.dumps(results, indent=2, **json_kw))
+    path.write_text(dumps(results, indent=2, **json_kw))
     return path

@@ -25,7 +25,6 @@ banded strain colour map. Results go to stdout as JSON and to
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -33,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from couture.bench import add_out_arg, write_results
+from couture.jsonout import dumps
 
 _OBSERVER_JS = """
 () => {
@@ -188,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     add_out_arg(ap)
     a = ap.parse_args(argv)
     res = run(a.vertices, a.seconds, a.offer_hz, tuple(a.fields.split(",")))
-    text = json.dumps(res, indent=2)
+    text = dumps(res, indent=2)
     print(text)
     write_results(a.out, "ui", res)
     return 0

@@ -24,3 +24,16 @@ def port_is_free(port: int, host: str = "127.0.0.1") -> bool:
         except OSError:
             return False
         return True
+
+
+def free_port_block(start: int, count: int = 3, host: str = "127.0.0.1", tries: int = 100) -> int:
+    """The first port p = start + k·count (k = 0, 1, ...) with p .. p + count - 1
+    all free on ``host`` right now (the UI's page, 3D view and pattern view);
+    any free port after ``tries`` blocks."""
+    for k in range(tries):
+        p = start + k * count
+        if p + count - 1 > 65535:
+            break
+        if all(port_is_free(p + i, host) for i in range(count)):
+            return p
+    return free_port(host)

@@ -8,7 +8,9 @@ class PatternError(ValueError):
 
     ``element`` names what is wrong in the vocabulary of edit element ids:
     ``'param:<name>'``, a stroke id, ``'<panel>'``, ``'<panel>:<segment>'``,
-    ``'seam:<...>'``. The message always repeats it, with the offending value
+    ``'seam:<...>'``; or, for a number outside its physical range, the
+    field's path in the design (``'fabric.area_density'``,
+    ``'resolution.fine_vertices'``, ``'body.name'``). The message always repeats it, with the offending value
     and, for options, the allowed range.
     """
 

@@ -3,6 +3,7 @@ drafted pattern: DXF (AAMA/ASTM style), SVG and PDF at true scale."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -24,17 +25,59 @@ class DesignFile(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 # ------------------------------------------------------------------ JSON
 
 
+_AT_BYTE = re.compile(r"\s*\(byte (\d+)\)")
+_EXPONENT_NUMBER = re.compile(rb"-?\d+(?:\.\d+)?[eE][+-]?\d+")
+
+
+def _line_col(data: bytes, offset: int) -> tuple[int, int]:
+    """1-based line and column (in characters) of byte ``offset``."""
+    before = data[: max(0, min(offset, len(data)))]
+    line_start = before.rfind(b"\n") + 1
+    return before.count(b"\n") + 1, len(before[line_start:].decode("utf-8", errors="replace")) + 1
+
+
+def parse_json(data: bytes | str, source: str = "<json>") -> Any:
+    """Standard JSON (RFC 8259: no NaN, no Infinity, no trailing commas) to
+    Python objects. A syntax error raises PatternError whose element is
+    ``<source>:<line>:<column>`` and whose message says what is wrong there."""
+    raw = data.encode() if isinstance(data, str) else bytes(data)
+    try:
+        return msgspec.json.decode(raw)
+    except msgspec.ValidationError:  # (a DecodeError too) a number beyond the float range, such as 1e400
+        big = [mm for mm in _EXPONENT_NUMBER.finditer(raw) if abs(float(mm.group())) == float("inf")]
+        offset = big[0].start() if big else 0
+        number = f" {big[0].group().decode()}" if big else ""
+        what = f"number{number} is beyond the float range (about 1.8e308)"
+    except msgspec.DecodeError as e:
+        text = str(e)
+        m = _AT_BYTE.search(text)
+        offset = int(m.group(1)) if m else len(raw)
+        what = _AT_BYTE.sub("", text).removeprefix("JSON is malformed: ")
+        if raw[offset : offset + 3] == b"NaN" or raw[offset : offset + 8] == b"Infinity":
+            offset -= raw[offset - 1 : offset] == b"-"
+            what = "NaN and Infinity are not JSON numbers (write a finite number)"
+        elif not raw.strip():
+            what = "the file is empty"
+        elif "truncated" in what:
+            what = "the file ends inside a value (truncated)"
+    line, col = _line_col(raw, offset)
+    raise PatternError(f"{source}:{line}:{col}", f"invalid JSON: {what}")
+
+
 def design_to_json(design: Design) -> bytes:
+    """Our pattern file; standard JSON (msgspec writes no NaN or Infinity)."""
     return msgspec.json.format(msgspec.json.encode(DesignFile(design=design)), indent=2)
 
 
-def design_from_json(data: bytes | str) -> Design:
+def design_from_json(data: bytes | str, source: str = "<json>") -> Design:
+    """A ``couture/design/v1`` file's design; PatternError naming ``source``
+    and the line and column of a syntax error, or the field of a wrong value."""
     try:
-        f = msgspec.json.decode(data, type=DesignFile)
+        f = msgspec.convert(parse_json(data, source), DesignFile)
     except msgspec.ValidationError as e:
-        raise PatternError("file", f"not a {DESIGN_SCHEMA} design: {e}") from None
+        raise PatternError(source, f"not a {DESIGN_SCHEMA} design: {e}") from None
     if f.schema != DESIGN_SCHEMA:
-        raise PatternError("file", f"schema {f.schema!r} is not {DESIGN_SCHEMA!r}")
+        raise PatternError(source, f"schema {f.schema!r} is not {DESIGN_SCHEMA!r}")
     return f.design
 
 
@@ -43,7 +86,7 @@ def save_design(design: Design, path: str | Path) -> None:
 
 
 def load_design(path: str | Path) -> Design:
-    return design_from_json(Path(path).read_bytes())
+    return design_from_json(Path(path).read_bytes(), str(path))
 
 
 def design_json_schema() -> dict:

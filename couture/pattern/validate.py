@@ -1,4 +1,5 @@
-"""Validation: draft a design and check it, raising PatternError naming the element."""
+"""Validation: check a design's numbers, draft it and check the pattern,
+raising PatternError naming the element."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from couture.pattern.draft import draft_with_context, find_segment, segment_poin
 from couture.pattern.drafted import DraftedPattern
 from couture.pattern.errors import PatternError
 from couture.pattern.geometry import point_in_polygon, polyline_length, segments_cross, self_intersections, signed_area
+from couture.pattern.limits import check_values
 from schemas.design import Design
 
 GATHER_RATIO_MAX = 3.0
@@ -70,8 +72,11 @@ def _seg_at(p, i, hole=-1) -> str:
 
 
 def validate(design: Design) -> DraftedPattern:
-    """Draft and check; return the pattern or raise PatternError naming the element
-    (option, stroke id, panel:segment or seam) and the offending value."""
+    """Check the numbers (fabric, resolution, body: :mod:`couture.pattern.limits`),
+    draft and check; return the pattern or raise PatternError naming the element
+    (``fabric.<field>``, option, stroke id, panel:segment or seam) and the
+    offending value."""
+    check_values(design)
     pattern, ctx = draft_with_context(design)
     # darts' own checks: inside the panel, named after the dart
     try:

@@ -19,7 +19,6 @@ rule's hard cap only.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict, dataclass, field
 from typing import Any, Callable
@@ -415,5 +414,7 @@ def _note(tr: TopicReport, abs_dev: float, rel_dev: float, where: str) -> None:
 
 
 def write_json(report: CompareReport, path: str) -> None:
+    from couture.jsonout import dumps  # standard JSON: an infinite deviation is written as null
+
     with open(path, "w") as f:
-        json.dump(report.to_json(), f, indent=2, default=str)
+        f.write(dumps(report.to_json(), indent=2, default=str))

@@ -379,7 +379,9 @@ def main(argv: list[str] | None = None) -> int:
             reports[n] = rep.to_json()
             failed += not rep.ok
     if a.json:
-        Path(a.json).write_text(json.dumps(reports, indent=2, default=str))
+        from couture.jsonout import dumps  # standard JSON: non-finite numbers as null
+
+        Path(a.json).write_text(dumps(reports, indent=2, default=str))
     return 1 if failed else 0
 
 

@@ -41,6 +41,7 @@ from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome
 from couture.mesh import GarmentMesh
 from couture.pattern.edit import apply_edit
 from couture.pattern.errors import PatternError
+from couture.pattern.limits import check_simulation_values
 from couture.sensitivity.drag3d import drag_to_param
 from couture.sensitivity.factor import FactorInfo
 from couture.sensitivity.predictor import Prediction, Predictor
@@ -192,7 +193,10 @@ class SensitivityService:
         return self.matcher.add_mesh(MeshArrival("fine", generation, mesh_generation, mesh, design_id))
 
     def take(self, matched: Matched[GarmentMesh]) -> None:
-        """Build the cloth model of a matched mesh (idle time: it costs a model build)."""
+        """Build the cloth model of a matched mesh (idle time: it costs a model
+        build). Raises PatternError naming the field for a fabric outside its
+        physical range (the remesher rejects those first); nothing is changed."""
+        check_simulation_values(matched.design)
         m = matched.mesh
         model = ClothModel(m.payload, matched.design.fabric, scene_from_design(matched.design))
         with self._lock:

@@ -28,6 +28,7 @@ import numpy as np
 from couture.cloth.model import ClothModel, Scene
 from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome
 from couture.mesh import GarmentMesh
+from couture.pattern.limits import check_simulation_values
 from couture.solvers import get_solver
 from couture.solvers.base import SolveResult
 from couture.solvers.cascadic import polish_prolongated
@@ -115,7 +116,8 @@ class SolveService:
 
     def take(self, matched: Matched[IncomingMesh]) -> bool:
         """Adopt a matched mesh and its design; True when both levels of one
-        generation are held (a solve can run)."""
+        generation are held (a solve can run). Raises PatternError (nothing
+        adopted) for a design this solver cannot simulate."""
         m = matched.mesh
         self.set_design(matched.design)
         self.set_mesh(m.level, m.payload.mesh, m.mesh_generation, m.payload.prolongation)
@@ -123,7 +125,10 @@ class SolveService:
 
     # -- state
     def set_design(self, design: Design) -> bool:
-        """Returns True when fabric or scene changed (models must be rebuilt)."""
+        """Returns True when fabric or scene changed (models must be rebuilt).
+        Raises PatternError naming the field (``fabric.area_density``, ...)
+        for a fabric outside its physical range, keeping the current design."""
+        check_simulation_values(design)
         changed = self.design is None or design.fabric != self.design.fabric or design.scene != self.design.scene
         self.design = design
         if changed:

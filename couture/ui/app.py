@@ -65,7 +65,11 @@ class UIConfig:
     host: str = "127.0.0.1"
     """bind address of all three servers (loopback by default)"""
     port: int = 8080
-    """the combined page (what users open); the 3D view is port + 1, the pattern view port + 2"""
+    """the combined page (what users open); the 3D view is port + 1, the pattern view port + 2
+    (each moves up when taken; :attr:`CoutureUI.page_url` says where the page is)"""
+    port_fallback: bool = True
+    """``port`` taken: serve the page on the next free port (port + 3, ...)
+    instead of failing with :class:`couture.ui.page.PortInUse`"""
     export_dir: Path = Path("out/exports")
     max_fps: float = 60.0
     """upper bound on drape pushes to the browser [1/s]"""
@@ -106,9 +110,22 @@ class CoutureUI:
     # ------------------------------------------------------------------ lifecycle
 
     def start(self) -> str:
-        """Start the servers and the threads; returns the page URL."""
+        """Start the servers and the threads; returns the page URL (its own
+        port: another when ``config.port`` was taken and ``port_fallback``)."""
         c = self.config
-        self.server3d = viser.ViserServer(host=c.host, port=c.port + 1, label="couture 3D", verbose=False)
+        # the page's port first: it is the URL users open, the views follow it
+        self.page = PageServer(c.host, c.port, fallback=c.port_fallback)
+        try:
+            self._start_views()
+        except BaseException:
+            self.page.stop()
+            raise
+        return self.page.url
+
+    def _start_views(self) -> None:
+        c = self.config
+        assert self.page is not None
+        self.server3d = viser.ViserServer(host=c.host, port=self.page.port + 1, label="couture 3D", verbose=False)
         self.server2d = viser.ViserServer(
             host=c.host, port=self.server3d.get_port() + 1, label="couture pattern", verbose=False
         )
@@ -162,7 +179,7 @@ class CoutureUI:
         self.drafter = Drafter(
             show_pattern=self.show_pattern, pattern=lambda: self.pattern, show_handles=self._show_handles
         )
-        self.page = PageServer(c.host, c.port, self.server3d.get_port(), self.server2d.get_port())
+        self.page.set_views(self.server3d.get_port(), self.server2d.get_port())
         workers = [(self.renderer.run, "couture-render")]
         if c.draft_locally:
             workers.append((self.drafter.run, "couture-draft"))
@@ -172,7 +189,6 @@ class CoutureUI:
         for t in self._threads:
             t.start()
         self.drafter.slot.put(self.design)
-        return self.page.url
 
     def stop(self) -> None:
         self._stop.set()
@@ -279,6 +295,11 @@ class CoutureUI:
         self, name: str, *, kind: str = "", state: str = "", rates: dict | None = None, last_error: str = ""
     ) -> None:
         self.status.set_node_status(name, kind=kind, state=state, rates=rates, last_error=last_error)
+
+    def set_rejection(self, text: str) -> None:
+        """Show why the newest design was rejected (node, field, value, allowed
+        range) at the top of the status; '' clears it."""
+        self.status.set_rejection(text)
 
     def set_status_notes(self, notes: list[str]) -> None:
         """Extra lines under the status table (the adapter's view of the pipeline)."""

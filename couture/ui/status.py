@@ -1,6 +1,7 @@
-"""Status text on the 3D server's panel: what is on screen and by which
-method, the nodes of the session with their state and busiest rates, and
-the adapter's notes on what the pipeline can do right now."""
+"""Status text on the 3D server's panel: a design the nodes rejected (the
+field and why), what is on screen and by which method, the nodes of the
+session with their state and busiest rates, and the adapter's notes on what
+the pipeline can do right now."""
 
 from __future__ import annotations
 
@@ -68,6 +69,8 @@ class StatusPanel:
         self.nodes: dict[str, NodeInfo] = {}
         self.notes: list[str] = []
         """extra lines from the bus adapter (e.g. predictions off)"""
+        self.rejection = ""
+        """why the newest design was rejected ('' when it was not), shown first"""
         self.dirty = threading.Event()
 
     def set_live_nodes(self, nodes: dict[str, bool] | Iterable[str]) -> None:
@@ -92,6 +95,13 @@ class StatusPanel:
         info.seen = time.time()
         self.dirty.set()
 
+    def set_rejection(self, text: str) -> None:
+        """A design a node rejected: who and why (the field, its value, the
+        allowed range); '' clears it (a later design was meshed)."""
+        if text != self.rejection:
+            self.rejection = text
+            self.dirty.set()
+
     def set_notes(self, notes: list[str]) -> None:
         if notes != self.notes:
             self.notes = list(notes)
@@ -110,7 +120,10 @@ class StatusPanel:
         )
 
     def refresh(self, on_screen: DrapeFrame | None) -> None:
-        rows = ["| node | state | rates |", "|---|---|---|"]
+        rows = []
+        if self.rejection:
+            rows += [f"**Design rejected**: {_md_escape(self.rejection)}. The last good drape stays on screen.", ""]
+        rows += ["| node | state | rates |", "|---|---|---|"]
         for n in sorted(self.nodes):
             info = self.nodes[n]
             state = (info.state or "alive") if info.alive else "**DEAD**"
@@ -126,3 +139,11 @@ class StatusPanel:
         if self.notes:
             rows += [""] + [f"- {n}" for n in self.notes]
         self.table.content = "\n".join(rows)
+
+
+def _md_escape(text: str) -> str:
+    """Plain text inside Markdown: no table pipes, emphasis or markup taken from it
+    (underscores stay: inside a word, as in field names, they emphasise nothing)."""
+    for ch in "\\`*[]|<>":
+        text = text.replace(ch, "\\" + ch)
+    return text

@@ -5,7 +5,10 @@ numbers the session's designs: meshes carry the generation it gave and the
 publisher's ``design_id``. Bus
 callbacks only queue work; one worker thread drafts, meshes and publishes,
 newest pattern first. A bad pattern (validation error naming the element) is
-reported in the node's status and the last good meshes stay published.
+answered at once on ``rejected`` (:class:`schemas.RejectedMsg`: the element,
+the value, the allowed range), also reported in the node's status, and the
+last good meshes stay published. A design that fails later, in meshing, is
+rejected the same way, with the exception's text.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from couture.bus import BusConfig, Node
 from couture.bus.worker import LatestWorker
 from couture.pattern.errors import PatternError
 from couture.remesh.service import MeshUpdate, RemeshService
-from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg
+from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg
 from schemas.convert import mesh_to_msg
 
 log = logging.getLogger("remesher")
@@ -37,7 +40,23 @@ def main(config: Config) -> None:
     with Node(config.name, config.bus, kind="remesher") as node:
         bus = node.bus
         pubs = {lv: bus.publisher(f"mesh/{lv}", MeshMsg) for lv in ("coarse", "fine")}
+        rejected_pub = bus.publisher("rejected", RejectedMsg)
         worker = LatestWorker("remesh", on_error=node.error)
+
+        def reject(msg: PatternMsg, element: str, reason: str) -> None:
+            node.count("bad_patterns")
+            node.error(f"pattern generation {msg.generation} rejected: {reason}")
+            rejected_pub.put(
+                RejectedMsg(
+                    node=config.name,
+                    generation=msg.generation,
+                    design_id=msg.design_id,
+                    element=element,
+                    reason=reason,
+                    name=msg.name,
+                    source=msg.source,
+                )
+            )
 
         def publish(up: MeshUpdate, psi: np.ndarray | None = None, edit_id: str = "") -> None:
             # Ψ rides on the mesh the receivers already hold, marked unchanged so
@@ -61,8 +80,11 @@ def main(config: Config) -> None:
                 try:
                     updates = service.set_design(msg.design, generation, msg.design_id)
                 except PatternError as e:
-                    node.count("bad_patterns")
-                    node.error(f"pattern generation {msg.generation} rejected: {e}")
+                    reject(msg, e.element, str(e))
+                    return
+                except Exception as e:  # meshing failed: still an answer, never silence
+                    log.exception("pattern generation %d: meshing failed", msg.generation)
+                    reject(msg, "", f"the remesher could not mesh this design: {type(e).__name__}: {e}")
                     return
                 if generation != msg.generation:
                     node.count("renumbered_patterns")

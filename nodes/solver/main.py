@@ -8,6 +8,9 @@ Behaviour (DESIGN §2): a new pattern generation aborts the running solve; a
 press aborts it too and no solve runs while a drag is in progress (the
 sensitivity node previews); after release the next meshes warm-start from
 the last prediction. Progress drapes go out every ``progress_period_s``.
+A mesh whose design has a fabric outside its physical range (the remesher
+rejects those first) is rejected on ``rejected`` and the solver keeps its
+state; a solve request with one is answered with the error.
 """
 
 from __future__ import annotations
@@ -23,9 +26,11 @@ from couture.bus import BusConfig, Node
 from couture.bus.worker import LatestWorker
 from couture.cloth.model import ClothModel
 from couture.designs import Matched
+from couture.pattern.errors import PatternError
+from couture.pattern.limits import check_simulation_values
 from couture.solvers import get_solver
 from couture.solvers.service import IncomingMesh, LevelRun, SolveService, scene_from_design
-from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, SolveRequestMsg, SolveResultMsg
+from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg, SolveRequestMsg, SolveResultMsg
 from schemas.convert import msg_to_mesh
 
 log = logging.getLogger("solver")
@@ -72,6 +77,7 @@ def main(config: Config) -> None:
     with Node(config.name, config.bus, kind="solver") as node:
         bus = node.bus
         pubs = {lv: bus.publisher(f"drape/{lv}", DrapeMsg) for lv in ("coarse", "fine")}
+        rejected_pub = bus.publisher("rejected", RejectedMsg)
         worker = LatestWorker("solve", on_error=node.error)
         lock = threading.Lock()
         state = {"generation": -1, "dragging": False, "abort": False}
@@ -141,7 +147,23 @@ def main(config: Config) -> None:
             )
 
         def take(matched: Matched[IncomingMesh]) -> None:
-            if service.take(matched):
+            try:
+                ready = service.take(matched)
+            except PatternError as e:
+                m = matched.mesh
+                node.count("bad_designs")
+                node.error(f"mesh/{m.level} of generation {m.generation} rejected: {e}")
+                rejected_pub.put(
+                    RejectedMsg(
+                        node=config.name,
+                        generation=m.generation,
+                        design_id=m.design_id,
+                        element=e.element,
+                        reason=str(e),
+                    )
+                )
+                return
+            if ready:
                 worker.submit("solve", solve_job)
 
         def on_pattern(msg: PatternMsg) -> None:
@@ -179,6 +201,7 @@ def main(config: Config) -> None:
             design = req.design or service.design
             if design is None:
                 raise RuntimeError("request has no design and this solver has seen no pattern")
+            check_simulation_values(design)  # PatternError naming the field: the result's error
             if req.mesh is not None:
                 mesh = msg_to_mesh(req.mesh)
             else:

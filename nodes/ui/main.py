@@ -32,7 +32,7 @@ from couture.ui.gestures import Edit
 from schemas.arrays import Array
 from schemas.convert import msg_to_mesh
 from schemas.design import Design
-from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, StatusMsg
+from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg, StatusMsg
 
 log = logging.getLogger("couture.ui.node")
 
@@ -82,6 +82,9 @@ class UIAdapter:
         self._own_edits: set[str] = set()
         self._drape_gen: dict[str, int] = {}
         self.seen_pattern = False
+        self._newest_mesh_ns = 0
+        """send time of the newest new mesh (a rejection older than it is history)"""
+        self._rejected_ns = 0
         ui.on_design_changed = self.publish_design
         ui.on_edit = self.publish_edit
         ui.on_solver_selected = self.select_solver
@@ -91,6 +94,7 @@ class UIAdapter:
         bus.subscribe("mesh/*", self.on_mesh)
         bus.subscribe("drape/*", self.on_drape)
         bus.subscribe("status/*", self.on_status)
+        bus.subscribe("rejected", self.on_rejected)
         bus.watch_nodes(self.on_liveliness)
         self._update_notes()
 
@@ -124,6 +128,10 @@ class UIAdapter:
     def on_mesh(self, msg: MeshMsg) -> None:
         if msg.unchanged:
             return  # the mesh on screen, repeated to carry Ψ: keep the drape shown
+        self._newest_mesh_ns = max(self._newest_mesh_ns, msg.stamp_ns)
+        if self._rejected_ns and msg.stamp_ns > self._rejected_ns:
+            self._rejected_ns = 0
+            self.ui.set_rejection("")  # a later design was meshed
         self.ui.show_mesh(msg_to_mesh(msg))
 
     def on_drape(self, msg: DrapeMsg) -> None:
@@ -260,6 +268,16 @@ class UIAdapter:
 
     def close(self) -> None:
         self.stop_recording()
+
+    def on_rejected(self, msg: RejectedMsg) -> None:
+        """A design a node refused: shown at the top of the status until a later design is meshed."""
+        if msg.stamp_ns < max(self._newest_mesh_ns, self._rejected_ns):
+            return  # history from before the mesh (or the rejection) on screen
+        self._rejected_ns = msg.stamp_ns
+        who = f"design {msg.name!r}" if msg.name else f"generation {msg.generation}"
+        src = f" from {msg.source}" if msg.source else ""
+        self.ui.set_rejection(f"{msg.node} rejected {who}{src}: {msg.reason}")
+        self.node.count("rejected_in")
 
     def on_status(self, msg: StatusMsg) -> None:
         self.ui.set_node_status(msg.node, kind=msg.kind, state=msg.state, rates=msg.rates, last_error=msg.last_error)
