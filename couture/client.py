@@ -114,8 +114,8 @@ class Client:
         self._own = OwnDesigns()
         self._asked: OrderedDict[int, str] = OrderedDict()
         """generation asked for -> design_id of this client's newest design that asked for it"""
-        self._rejected: OrderedDict[str, RejectedMsg] = OrderedDict()
-        """design_id (or '#<generation>' when it had none) -> the first rejection of that design"""
+        self._rejected: OrderedDict[tuple[str, str], RejectedMsg] = OrderedDict()
+        """(design_id, or '#<generation>' when it had none; node) -> that node's first rejection of that design"""
         self._followers: list[queue.SimpleQueue] = []
         self._bus: Bus | None = None
 
@@ -171,7 +171,7 @@ class Client:
 
     def _on_rejected(self, msg: RejectedMsg) -> None:
         with self._cond:
-            key = msg.design_id or f"#{msg.generation}"
+            key = (msg.design_id or f"#{msg.generation}", msg.node)
             if key not in self._rejected:
                 self._rejected[key] = msg
                 while len(self._rejected) > 256:
@@ -358,7 +358,7 @@ class Client:
     def _rejection_locked(self, generation: int) -> PatternRejected | None:
         design_id = self._asked.get(generation)
         if design_id is not None:
-            msg = self._rejected.get(design_id)
+            msg = next((m for (d, _), m in self._rejected.items() if d == design_id), None)
         else:  # not ours: a rejection of a design that asked for that number
             msg = next((m for m in reversed(self._rejected.values()) if m.generation == generation), None)
         return None if msg is None else PatternRejected.from_msg(msg)

@@ -1,8 +1,9 @@
 """`couture drape` end to end, real nodes over Zenoh on a small skirt: the
 exit status says whether the fine drape converged (0), stopped short (3, the
-drape written and the diagnosis printed) or the design was bad (4, within
-seconds, naming the element); the default output carries no log chatter.
-The progress lines and the client's wait are also checked without a bus."""
+drape written and the diagnosis printed) or the design was bad (4, at once,
+naming the field: the remesher's and the solver's rejections on the bus);
+the default output carries no log chatter. The progress lines and the
+client's wait are also checked without a bus."""
 
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ import pytest
 
 from couture.cli import DrapeExit, _DrapeProgress
 from couture.client import Client, PatternRejected
-from schemas import DrapeMsg, StatusMsg
+from schemas import DrapeMsg, RejectedMsg
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -29,8 +30,9 @@ SMALL = {"sloper": {"kind": "skirt", "params": {}}, "resolution": {"coarse_verti
 
 
 def _drape(
-    tmp_path: Path, design: dict, *extra: str, timeout: float = 100.0
+    tmp_path: Path, design: dict, *extra: str, timeout: float = 100.0, session: str = ""
 ) -> tuple[subprocess.CompletedProcess, float]:
+    tmp_path.mkdir(parents=True, exist_ok=True)
     pattern = tmp_path / "p.json"
     pattern.write_text(json.dumps(design))
     # a session of its own, so parallel runs never see each other's drapes
@@ -43,7 +45,7 @@ def _drape(
         "--out",
         str(tmp_path / "out"),
         "--session",
-        f"t{uuid.uuid4().hex[:8]}",
+        session or f"t{uuid.uuid4().hex[:8]}",
         *extra,
     ]
     t0 = time.monotonic()
@@ -77,13 +79,75 @@ def test_capped_solve_exits_3_writes_the_drape_and_prints_the_diagnosis(tmp_path
     assert "solver-kinetic" in last and meta["diagnosis"] in last
 
 
-def test_rejected_design_exits_4_fast_naming_the_element(tmp_path):
-    bad = {**SMALL, "sloper": {"kind": "skirt", "params": {"length": -1.0}}}
-    r, seconds = _drape(tmp_path, bad, "--timeout", "90")
-    assert r.returncode == DrapeExit.BAD_DESIGN, r.stderr[-3000:]
-    assert "rejected pattern generation 1: param:length" in r.stderr
-    assert seconds < 45, f"took {seconds:.0f} s: the rejection was not noticed, the wait ran on"
-    assert not (tmp_path / "out" / "drape.obj").exists()
+BAD_DESIGNS = [
+    # name, design, the element the rejection names, a piece of its reason
+    ("unknown_sloper", {**SMALL, "sloper": {"kind": "cape", "params": {}}}, "sloper", "unknown sloper kind 'cape'"),
+    ("negative_length", {**SMALL, "sloper": {"kind": "skirt", "params": {"length": -1.0}}}, "param:length", "-1 m"),
+    ("no_density", {**SMALL, "fabric": {"area_density": 0}}, "fabric.area_density", "[0.001, 10] kg/m^2"),
+    ("no_stretch", {**SMALL, "fabric": {"stretch_stiffness": 0}}, "fabric.stretch_stiffness", "[0.1, 1e+06] N/m"),
+    ("huge_stretch", {**SMALL, "fabric": {"stretch_stiffness": 1e308}}, "fabric.stretch_stiffness", "1e+308 N/m"),
+]
+
+
+def test_rejected_designs_answer_at_once_and_the_nodes_keep_draping(tmp_path):
+    """One session of real nodes (remesher, Newton solver): every bad design
+    exits 4 naming its field (exit 5 would mean the wait ran to --timeout)
+    and a good one then drapes; a mesh whose design has a bad fabric, sent to
+    the solver past the remesher, is rejected by the solver on the bus, a
+    solve request with one is answered with the error, and the next good
+    design still drapes; no node ever restarts."""
+    from couture import supervisor
+    from couture.bus import BusConfig
+    from couture.remesh.service import RemeshService
+    from schemas import MeshMsg, PatternMsg
+    from schemas.convert import mesh_to_msg
+    from schemas.design import Design, Fabric, Resolution
+
+    session = f"t{uuid.uuid4().hex[:8]}"
+    nodes = [n for n in supervisor.default_nodes(solvers=["newton"], ui=False) if n.name != "sensitivity"]
+    cfg = supervisor.SupervisorConfig(
+        bus=BusConfig(session=session), nodes=nodes, child_log=str(tmp_path / "nodes.log")
+    )
+    with supervisor.Supervisor(cfg) as sup:
+        connect = ("--connect", sup.endpoint, "--timeout", "90")
+        with Client(bus=BusConfig(session=session, connect=[sup.endpoint], listen=["tcp/127.0.0.1:0"])) as c:
+            c.wait_nodes(["remesher", "solver-newton"], timeout=60)
+            pids = sup.pids()
+            for name, design, element, piece in BAD_DESIGNS:
+                r, seconds = _drape(tmp_path / name, design, *connect, session=session)
+                print(f"{name}: exit {r.returncode} after {seconds:.1f} s")
+                assert r.returncode == DrapeExit.BAD_DESIGN, r.stderr[-3000:]
+                last = r.stderr.strip().splitlines()[-1]
+                assert last.startswith("couture drape: bad design: remesher rejected pattern generation "), last
+                assert f": {element}: " in last and piece in last, last
+                assert not (tmp_path / name / "out" / "drape.obj").exists()
+            rejected = [(m.node, m.element) for m in c.rejections()]
+            assert rejected == [("remesher", e) for _, _, e, _ in BAD_DESIGNS], rejected
+            r, _ = _drape(tmp_path / "good", SMALL, *connect, session=session)
+            assert r.returncode == DrapeExit.CONVERGED, r.stderr[-3000:]
+
+            # past the remesher: a mesh naming a design with no stretch stiffness reaches the solver
+            res = Resolution(coarse_vertices=300, fine_vertices=900)
+            coarse = RemeshService().set_design(Design(resolution=res), 1)[0].mesh
+            bad = Design(resolution=res, fabric=Fabric(stretch_stiffness=0.0))
+            c.bus.publisher("pattern", PatternMsg).put(
+                PatternMsg(design=bad, generation=50, design_id="past-the-remesher", source="test")
+            )
+            c.bus.publisher("mesh/coarse", MeshMsg).put(
+                mesh_to_msg(coarse, generation=50, mesh_generation=10_000, design_id="past-the-remesher")
+            )
+            deadline = time.monotonic() + 30
+            while not (by_solver := [m for m in c.rejections() if m.node == "solver-newton"]):
+                assert time.monotonic() < deadline, f"the solver never rejected the mesh: {c.rejections()}"
+                time.sleep(0.05)
+            assert by_solver[0].design_id == "past-the-remesher" and by_solver[0].element == "fabric.stretch_stiffness"
+            answer = c.solve(coarse, solver="solver-newton", design=bad, max_seconds=5.0)
+            assert answer.x is None and "fabric.stretch_stiffness" in answer.error, answer.error
+
+            gen = c.publish_pattern(Design(resolution=res, fabric=Fabric(stretch_stiffness=50.0)))
+            drape = c.wait_drape("fine", generation=gen, timeout=90, final=True)
+            assert drape.solver == "solver-newton" and drape.x.shape[0] > 0
+            assert sup.pids() == pids, "a node restarted"
 
 
 def _drape_msg(
@@ -153,17 +217,25 @@ def test_follow_drape_passes_its_generation_on_and_raises_on_the_remeshers_rejec
     assert seen == [(2, "coarse", False), (2, "coarse", True), (2, "fine", True)]
 
     reason = "param:length: value -1 m is outside [0.38, 1] m"
-    client._on_status(
-        StatusMsg(node="remesher", kind="remesher", last_error=f"pattern generation 2 rejected: {reason}")
-    )
+    client._on_rejected(RejectedMsg(node="remesher", generation=2, element="param:length", reason=reason))
     assert client.rejection(3) is None  # another generation's rejection says nothing about 3
     threading.Timer(
         0.2,
-        lambda: client._on_status(
-            StatusMsg(node="remesher", kind="remesher", last_error=f"pattern generation 3 rejected: {reason}")
-        ),
+        lambda: client._on_rejected(RejectedMsg(node="remesher", generation=3, element="param:length", reason=reason)),
     ).start()
     t0 = time.monotonic()
     with pytest.raises(PatternRejected) as e:
         client.follow_drape(3, timeout=10)
     assert time.monotonic() - t0 < 5 and e.value.reason == reason and e.value.generation == 3
+    assert e.value.element == "param:length" and e.value.node == "remesher"
+
+    # a design this client published is matched by its design_id, not by the number it asked for
+    client._asked[7] = "ours"
+    client._on_rejected(RejectedMsg(node="remesher", generation=7, design_id="theirs", reason="x: bad"))
+    assert client.rejection(7) is None
+    client._on_rejected(
+        RejectedMsg(node="solver-newton", generation=7, design_id="ours", element="fabric.area_density", reason="y")
+    )
+    with pytest.raises(PatternRejected) as e:
+        client.wait_drape("fine", generation=7, timeout=10)
+    assert e.value.node == "solver-newton" and e.value.element == "fabric.area_density"

@@ -136,3 +136,75 @@ def test_drape_fails_clearly_when_nothing_answers(tmp_path):
     assert (
         r.returncode == 4 and "not a couture/design/v1 pattern" in r.stderr
     )  # DrapeExit.BAD_DESIGN and "$.sloper.kind" in r.stderr
+
+
+def _read_url(proc: subprocess.Popen, deadline: float) -> str:
+    """The first 'couture UI: URL' line a UI node prints."""
+    assert proc.stdout is not None
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        if line.startswith("couture UI: "):
+            return line.split("couture UI: ", 1)[1].strip()
+    raise AssertionError(f"no URL printed (exit code {proc.poll()})")
+
+
+def test_two_uis_on_one_port_each_serve_and_print_their_own_url():
+    """Two UI nodes (two sessions) asked for the same port: the second takes the
+    next free one and prints it, neither exits (no crash loop under `couture up`),
+    and each URL serves its own page."""
+    import urllib.request
+
+    port = free_port()
+    procs = []
+    try:
+        urls = []
+        for k in range(2):
+            session = f"ui{k}{uuid.uuid4().hex[:6]}"
+            procs.append(
+                subprocess.Popen(
+                    [sys.executable, "-m", "nodes.ui", "--session", session, "--port", str(port)],
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.DEVNULL,
+                    text=True,
+                )
+            )
+            urls.append(_read_url(procs[-1], time.monotonic() + 60))
+        assert urls[0] == f"http://127.0.0.1:{port}/" and urls[1] != urls[0], urls
+        for url, proc in zip(urls, procs, strict=True):
+            assert proc.poll() is None, "a UI node exited"
+            with urllib.request.urlopen(url, timeout=10) as page:
+                assert page.status == 200 and b'id="view3d"' in page.read()
+    finally:
+        for proc in procs:
+            proc.send_signal(signal.SIGINT)
+        for proc in procs:
+            try:
+                proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
+def test_up_picks_a_free_ui_port_or_fails_clearly_on_an_explicit_taken_one():
+    from couture.bus.ports import free_port_block, port_is_free
+    from couture.cli import ui_port_for
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as held:
+        held.bind(("127.0.0.1", 0))
+        held.listen()
+        taken = held.getsockname()[1]
+        block = free_port_block(taken, 3)
+        assert block != taken and all(port_is_free(block + i) for i in range(3))
+        with pytest.raises(RuntimeError, match=f"--ui-port {taken}: port {taken} on 127.0.0.1 is already in use"):
+            ui_port_for("127.0.0.1", taken)
+        # the command line: an error before any node starts
+        r = subprocess.run(
+            [sys.executable, "-m", "couture.cli", "up", "--ui-port", str(taken), "--session", "porttest"],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    assert r.returncode == 1 and f"couture up: error: --ui-port {taken}: port {taken}" in r.stderr, r.stderr
+    assert "started remesher" not in r.stderr

@@ -219,13 +219,14 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
     """On a real loopback bus: with two solvers publishing, choosing one shows only its
     drapes (its newest at once); a sensitivity node that leaves turns on the
     "predictions are off" note; the record toggle starts a recorder process that
-    writes what crosses the bus into an MCAP file, finalized when toggled off."""
+    writes what crosses the bus into an MCAP file, finalized when toggled off; a
+    rejected design is shown at the top of the status until a later mesh."""
     from mcap.reader import make_reader
 
     from couture.bus import BusConfig, Node, open_session
     from nodes.ui.main import UIAdapter
     from schemas.convert import mesh_to_msg
-    from schemas.messages import DrapeMsg, decode
+    from schemas.messages import DrapeMsg, RejectedMsg, decode
 
     port = free_port()
     session = f"uirec{port}"
@@ -307,6 +308,21 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
                 ]
             assert "couture/drape/v1" in schemas, schemas
             assert set(range(10, 15)) <= set(gens), f"recorded generations {gens}, expected 10..14"
+
+            # a design a node rejected: named at the top of the status until a later design is meshed
+            reason = "fabric.area_density: 0 kg/m^2 is outside the allowed range [0.001, 10] kg/m^2"
+            peer.publisher("rejected", RejectedMsg).put(
+                RejectedMsg(node="remesher", generation=20, element="fabric.area_density", reason=reason, name="bad")
+            )
+            assert wait_for(lambda: ui.status.table.content.startswith("**Design rejected**: remesher")), (
+                ui.status.table.content[:300]
+            )
+            assert ui.status.rejection == "remesher rejected design 'bad': " + reason
+            assert (
+                "fabric.area_density: 0 kg/m^2 is outside the allowed range \\[0.001, 10\\]" in ui.status.table.content
+            )
+            mesh_pub.put(mesh_to_msg(mesh))
+            assert wait_for(lambda: "Design rejected" not in ui.status.table.content), ui.status.table.content[:300]
     finally:
         if adapter is not None:
             adapter.close()
@@ -455,3 +471,29 @@ def test_a_tug_edit_becomes_an_edit_message():
     np.testing.assert_array_equal(msg.picked_bary.numpy(), [0.2, 0.3, 0.5])
     plain = edit_msg(Edit("e2", "press", "cv:gore0:hem:0", ("x", "y"), np.zeros(2)), generation=1)
     assert plain.picked_vertex == -1 and plain.view_proj is None and plain.viewport_px == []
+
+
+def test_page_port_taken_falls_back_or_fails_naming_it():
+    """The page binds first: a taken port is an error naming it, or with
+    fallback the next free one, and the URL it reports is its own."""
+    import urllib.request
+
+    from couture.ui.page import PageServer, PortInUse
+
+    first = PageServer("127.0.0.1", free_port(), 1, 2)
+    try:
+        with pytest.raises(PortInUse, match=f"port {first.port} on 127.0.0.1 is already in use"):
+            PageServer("127.0.0.1", first.port)
+        second = PageServer("127.0.0.1", first.port, fallback=True)
+        try:
+            assert second.port != first.port and second.url == f"http://127.0.0.1:{second.port}/"
+            with pytest.raises(urllib.error.HTTPError) as e:  # views not started yet: 503, not a wrong page
+                urllib.request.urlopen(second.url, timeout=10)
+            assert e.value.code == 503
+            second.set_views(7001, 7002)
+            with urllib.request.urlopen(second.url, timeout=10) as page:
+                assert b":7001/" in page.read()
+        finally:
+            second.stop()
+    finally:
+        first.stop()
