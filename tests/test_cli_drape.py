@@ -7,6 +7,7 @@ client's wait are also checked without a bus."""
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import os
@@ -94,12 +95,16 @@ def test_rejected_designs_answer_at_once_and_the_nodes_keep_draping(tmp_path):
     exits 4 naming its field (exit 5 would mean the wait ran to --timeout)
     and a good one then drapes; a mesh whose design has a bad fabric, sent to
     the solver past the remesher, is rejected by the solver on the bus, a
-    solve request with one is answered with the error, and the next good
-    design still drapes; no node ever restarts."""
+    solve request with one is answered with the error, a lockstep replay of a
+    bad design goes on at its rejection, and the next good design still
+    drapes; no node ever restarts."""
     from couture import supervisor
     from couture.bus import BusConfig
+    from couture.recording.mcapio import SessionWriter
+    from couture.recording.replay import ReplayConfig
+    from couture.recording.replay import main as replay
     from couture.remesh.service import RemeshService
-    from schemas import MeshMsg, PatternMsg
+    from schemas import MeshMsg, PatternMsg, encode
     from schemas.convert import mesh_to_msg
     from schemas.design import Design, Fabric, Resolution
 
@@ -143,6 +148,15 @@ def test_rejected_designs_answer_at_once_and_the_nodes_keep_draping(tmp_path):
             assert by_solver[0].design_id == "past-the-remesher" and by_solver[0].element == "fabric.stretch_stiffness"
             answer = c.solve(coarse, solver="solver-newton", design=bad, max_seconds=5.0)
             assert answer.x is None and "fabric.stretch_stiffness" in answer.error, answer.error
+
+            # replay --lockstep takes the rejection as the pattern's answer (not its drape/fine timeout)
+            recording = tmp_path / "bad.mcap"
+            with contextlib.closing(SessionWriter(str(recording))) as w:
+                bad_pattern = PatternMsg(design=bad, generation=60, design_id="recorded-bad", source="ui", seq=1)
+                w.write("couture/rec/pattern", encode(bad_pattern), 1)
+            cfg = ReplayConfig(path=str(recording), bus=c.cfg, rate=0.0, lockstep=True, lockstep_timeout_s=60.0)
+            assert replay(cfg) == 1
+            assert any(m.design_id == "recorded-bad" for m in c.rejections())
 
             gen = c.publish_pattern(Design(resolution=res, fabric=Fabric(stretch_stiffness=50.0)))
             drape = c.wait_drape("fine", generation=gen, timeout=90, final=True)

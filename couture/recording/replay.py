@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from couture.bus import BusConfig, StopFlag, open_session
 from couture.recording.mcapio import read_session
 from schemas import topics as topic_table
-from schemas.messages import DrapeMsg, Message, decode
+from schemas.messages import DrapeMsg, Message, PatternMsg, RejectedMsg, decode
 
 log = logging.getLogger("couture.replay")
 
@@ -42,8 +42,9 @@ class ReplayConfig:
     """keep the session open this long after the last message so it drains"""
     lockstep: bool = False
     """after each pattern message, wait for the final drape/fine of its
-    generation before sending anything else: the outputs then do not depend on
-    how fast the machine is (no solve is cut short by the next input)"""
+    generation (or a node's rejection of that design) before sending anything
+    else: the outputs then do not depend on how fast the machine is (no solve
+    is cut short by the next input)"""
     lockstep_timeout_s: float = 300.0
     """[s] to wait for each drape/fine in lockstep mode"""
 
@@ -75,6 +76,8 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
                     raise TimeoutError(text)
                 log.warning(text)
         done_gen = [-1]
+        rejected: set[str] = set()
+        """design_ids a node rejected: their answer, instead of a drape"""
         cv = threading.Condition()
         if config.lockstep:
 
@@ -84,12 +87,21 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
                         done_gen[0] = max(done_gen[0], msg.generation)
                         cv.notify_all()
 
-            bus.subscribe("drape/fine", on_drape, DrapeMsg)
+            def on_rejected(msg: RejectedMsg) -> None:
+                with cv:
+                    rejected.add(msg.design_id)
+                    cv.notify_all()
 
-        def wait_outputs(generation: int) -> None:
+            bus.subscribe("drape/fine", on_drape, DrapeMsg)
+            bus.subscribe("rejected", on_rejected, RejectedMsg, history=False)
+
+        def wait_outputs(generation: int, design_id: str) -> None:
             deadline = time.monotonic() + config.lockstep_timeout_s
             with cv:
                 while done_gen[0] < generation and not stop.is_set():
+                    if design_id and design_id in rejected:
+                        log.warning("replay --lockstep: pattern generation %d was rejected; going on", generation)
+                        return
                     left = deadline - time.monotonic()
                     if left <= 0:
                         raise TimeoutError(
@@ -112,7 +124,8 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
                 pubs[m.topic].put_raw(m.data)
                 sent += 1
                 if config.lockstep and m.topic == "pattern":
-                    wait_outputs(decode(m.data).generation)
+                    pattern = decode(m.data, PatternMsg)
+                    wait_outputs(pattern.generation, pattern.design_id)
             if not config.loop or stop.is_set():
                 break
         time.sleep(config.linger_s)
