@@ -65,7 +65,8 @@ def _parser() -> argparse.ArgumentParser:
     rp.add_argument(
         "--lockstep",
         action="store_true",
-        help="after each pattern, wait for its final drape/fine before sending on (deterministic regression runs)",
+        help="after each pattern, wait for its final drape/fine (or a node's rejection of it) before sending on "
+        "(deterministic regression runs)",
     )
     rp.add_argument("--lockstep-timeout", type=float, default=300.0, help="[s] per pattern in --lockstep mode")
     add_bus_args(rp)
@@ -266,7 +267,8 @@ def ui_port_for(host: str, asked: int | None) -> int:
     port = free_port_block(DEFAULT_UI_PORT, 3, host)
     if port != DEFAULT_UI_PORT:
         print(
-            f"[up] port {DEFAULT_UI_PORT} is in use (another couture up?): this session's UI is on port {port}",
+            f"[up] ports {DEFAULT_UI_PORT}-{DEFAULT_UI_PORT + 2} are not all free (another couture up?): "
+            f"this session's UI is on port {port}",
             file=sys.stderr,
             flush=True,
         )

@@ -289,8 +289,9 @@ class Client:
         generation >= ``generation`` (any if None) that arrives or has arrived
         since the client opened; for a generation this client's
         :meth:`publish_pattern` returned, a drape of exactly that design.
-        Raises :class:`PatternRejected` as soon as a node rejects that design,
-        TimeoutError naming what was missing after ``timeout`` [s]."""
+        Raises :class:`PatternRejected` as soon as a node rejects that design
+        (one this client published), TimeoutError naming what was missing
+        after ``timeout`` [s]."""
         if kind not in self._drapes:
             raise ValueError(f"kind must be one of {list(self._drapes)}, got {kind!r}")
         deadline = time.monotonic() + timeout
@@ -310,8 +311,8 @@ class Client:
 
         with self._cond:
             while (m := find()) is None:
-                if generation is not None and (rej := self._rejection_locked(generation)) is not None:
-                    raise rej
+                if generation in self._asked and (rej := self._rejection_locked(generation)) is not None:
+                    raise rej  # our design: its rejection is the answer (another's may be followed by a drape >= it)
                 left = deadline - time.monotonic()
                 if left <= 0:
                     break

@@ -14,7 +14,8 @@ if __name__ == "__main__":
         "--port",
         type=int,
         default=8080,
-        help="the page designers open; the 3D view is port + 1, the pattern view port + 2",
+        help="the page designers open; the 3D view is port + 1, the pattern view port + 2; "
+        "a taken port moves the page to the next free one (port + 3, ...), and the URL printed says where",
     )
     p.add_argument("--export-dir", type=Path, default=Path("out/exports"), help="where exports are written")
     p.add_argument(
