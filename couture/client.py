@@ -311,7 +311,7 @@ class Client:
 
         with self._cond:
             while (m := find()) is None:
-                if generation in self._asked and (rej := self._rejection_locked(generation)) is not None:
+                if generation is not None and generation in self._asked and (rej := self._rejection_locked(generation)):
                     raise rej  # our design: its rejection is the answer (another's may be followed by a drape >= it)
                 left = deadline - time.monotonic()
                 if left <= 0:
