@@ -7,6 +7,12 @@ R scales it (2: twice as fast), 0 sends as fast as possible; delivery is
 reliable with BLOCK congestion control, so nothing is lost at any rate.
 Before the first message, replay waits (up to ``wait_timeout_s``) for the
 named nodes' liveliness and for a subscriber on every replayed key.
+
+``path`` is a recording file (read with its numbered parts, see
+couture.recording.parts) or a list of files, read in the order given.
+Payloads the recorder set apart as rejected are never sent, and neither is a
+payload that fails the same check now (a recording made before the recorder
+checked): each skipped one is counted and the first named in the log.
 """
 
 from __future__ import annotations
@@ -18,7 +24,8 @@ import time
 from dataclasses import dataclass, field
 
 from couture.bus import BusConfig, StopFlag, open_session
-from couture.recording.mcapio import read_session
+from couture.recording.mcapio import check_payload, read_session
+from couture.recording.parts import describe, resolve
 from schemas import topics as topic_table
 from schemas.messages import DrapeMsg, Message, decode
 
@@ -27,7 +34,8 @@ log = logging.getLogger("couture.replay")
 
 @dataclass
 class ReplayConfig:
-    path: str
+    path: str | list[str]
+    """a recording (with its numbered parts) or several files"""
     bus: BusConfig = field(default_factory=BusConfig)
     topics: list[str] = field(default_factory=topic_table.replayed_topics)
     """relative topics to re-publish; default: the inputs of the topic table"""
@@ -46,13 +54,27 @@ class ReplayConfig:
     how fast the machine is (no solve is cut short by the next input)"""
     lockstep_timeout_s: float = 300.0
     """[s] to wait for each drape/fine in lockstep mode"""
+    parts: bool = True
+    """read each file's numbered continuations too (False: exactly the files given)"""
 
 
 def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
     """Replay; returns the number of messages sent."""
-    msgs = list(read_session(config.path, config.topics))
+    files = resolve(config.path, parts=config.parts)
+    msgs, skipped = [], 0
+    for m in read_session(files, config.topics, parts=False):
+        reason = check_payload(m.topic, m.data)
+        if reason:
+            if not skipped:
+                log.warning("replay: not sending an invalid payload on %s from %s: %s", m.topic, m.path, reason)
+            skipped += 1
+            continue
+        msgs.append(m)
+    where = describe(files)
+    if skipped:
+        print(f"[replay] {where}: {skipped} invalid payloads skipped (never sent)", file=sys.stderr)
     if not msgs:
-        raise ValueError(f"{config.path}: no messages on topics {config.topics}")
+        raise ValueError(f"{where}: no messages on topics {config.topics}")
     stop = stop or StopFlag()
     sent = 0
     with open_session(config.bus, name="replay") as bus:
@@ -116,5 +138,5 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
             if not config.loop or stop.is_set():
                 break
         time.sleep(config.linger_s)
-    print(f"[replay] sent {sent} messages from {config.path}", file=sys.stderr)
+    print(f"[replay] sent {sent} messages from {where}", file=sys.stderr)
     return sent
