@@ -258,6 +258,33 @@ def test_sensitivity_3d_tug_commits_through_apply_edit(equilibrium):
     assert r.design.sloper.params["length"] == base.max
 
 
+def test_sensitivity_rejects_edits_of_other_designs_and_a_tug_overtaken_by_a_new_design(equilibrium):
+    """A press made on another design than the mesh held opens no gesture
+    (counted stale / foreign); a 3D tug during which a newer design was
+    meshed publishes no design edited from the stale one."""
+    mesh, _ = equilibrium
+    counted: list[str] = []
+    s = ready_service(equilibrium)
+    s.count = counted.append
+    assert s.press(Press(edit_id="old", element="hem", generation=0)) is None
+    assert s.press(Press(edit_id="rogue", element="hem", generation=2**62)) is None
+    assert counted == ["stale_edits", "foreign_edits"] and s.gesture is None
+    vp, viewport = camera()
+    bottom = int(np.argmin(mesh.X[:, 1]))
+    psi = np.zeros((mesh.n_vertices, 2, 2))
+    psi[:, 1, 0] = -(SIZE - mesh.X[:, 1]) / SIZE
+    assert s.press(
+        Press(edit_id="t", generation=1, param="length", picked_vertex=bottom, view_proj=vp, viewport=viewport)
+    )
+    s.psi("t", psi)
+    # meanwhile another client's design is numbered 2 and its mesh matched
+    s.offer_design(7, design(length=0.7), "other")
+    assert s.offer_mesh(2, 2, sheet(generation=2), "other").status == "matched"
+    r = s.release("t", np.array([0.0, 40.0]))
+    assert r is not None and r.prediction is not None and r.design is None
+    assert counted[-1] == "stale_edits"
+
+
 def test_sensitivity_mesh_matching_follows_designs(equilibrium):
     """Two designs in a row: the second mesh gets the second fabric; a stale mesh is dropped."""
     mesh, _ = equilibrium
