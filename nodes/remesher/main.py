@@ -115,25 +115,31 @@ def main(config: Config) -> None:
                 log.info("pattern %s superseded by %s before it was meshed", older, key)
             worker.submit("pattern", job)
 
+        def off_design(msg: EditMsg) -> bool:
+            """A press made on another design than the current one: logged, counted, no Ψ."""
+            verdict = service.judge_edit(msg.generation)
+            if verdict == "current":
+                return False
+            node.count(f"{verdict}_edits")
+            log.warning(
+                "edit %s: press on generation %d, the current design is %d (%s): no Ψ",
+                msg.edit_id,
+                msg.generation,
+                service.generation,
+                verdict,
+            )
+            return True
+
         def on_edit(msg: EditMsg) -> None:
             if msg.phase != "press":
                 return
             # a 3D tug drives a sloper parameter: its Ψ is dX/dg (column 0)
             element = f"param:{msg.param}" if msg.picked_vertex >= 0 and msg.param else msg.element
-            if not element:
+            if not element or off_design(msg):  # judged on arrival: a newer press would supersede the job
                 return
 
             def job() -> None:
-                verdict = service.judge_edit(msg.generation)
-                if verdict != "current":
-                    node.count(f"{verdict}_edits")
-                    log.warning(
-                        "edit %s: press on generation %d, the current design is %d (%s): no Ψ",
-                        msg.edit_id,
-                        msg.generation,
-                        service.generation,
-                        verdict,
-                    )
+                if off_design(msg):  # a pattern queued before it has been numbered since
                     return
                 try:
                     psis = service.psi_for(element)
