@@ -424,7 +424,11 @@ def drape(
         if not bus.connect:
             client.wait_nodes(["remesher", f"solver-{solver}"], timeout=min(30.0, timeout))
         gen = client.publish_pattern(design, name=Path(pattern).stem)
-        print(f"[drape] {pattern}: generation {gen}, solver {solver}", file=sys.stderr, flush=True)
+        print(
+            f"[drape] {pattern}: design {client.design_id_of(gen)} (asks for generation {gen}), solver {solver}",
+            file=sys.stderr,
+            flush=True,
+        )
         try:
             d = client.follow_drape(gen, timeout=timeout, on_drape=progress)
         except PatternRejected as e:
@@ -438,11 +442,13 @@ def drape(
         progress.close()
         if "fine" not in progress.finals:  # joined after the fine result was already out
             print(f"[drape] fine: {_describe(d, tol['fine'])}", file=sys.stderr, flush=True)
-        mesh = client.latest_mesh("fine")
-        if mesh is None or mesh.generation != d.generation or mesh.X.shape[0] != d.x.shape[0]:
+        # the mesh of exactly this design (another client's may have come since)
+        mesh = client.mesh_of(d.generation, "fine")
+        if mesh is None or mesh.mesh_generation != d.mesh_generation or mesh.X.shape[0] != d.x.shape[0]:
             raise RuntimeError(
-                f"drape/fine for generation {d.generation} arrived but no matching mesh/fine "
-                f"(have {None if mesh is None else (mesh.generation, mesh.X.shape[0])})"
+                f"drape/fine for generation {d.generation} (mesh {d.mesh_generation}, {d.x.shape[0]} vertices) "
+                f"arrived but no matching mesh/fine (have "
+                f"{None if mesh is None else (mesh.generation, mesh.mesh_generation, mesh.X.shape[0])})"
             )
         out_dir.mkdir(parents=True, exist_ok=True)
         write_obj(out_dir / "drape.obj", d.x.numpy(), mesh.tris.numpy(), mesh.X.numpy())
@@ -458,6 +464,8 @@ def drape(
             json.dumps(
                 {
                     "generation": d.generation,
+                    "design_id": mesh.design_id,
+                    "mesh_generation": d.mesh_generation,
                     "solver": d.solver,
                     "method": d.method,
                     "residual": d.residual,

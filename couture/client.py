@@ -24,7 +24,7 @@ import msgspec
 import numpy as np
 
 from couture.bus import DEFAULT_ENDPOINT, Bus, BusConfig, open_session
-from couture.designs import OwnDesigns
+from couture.designs import GENERATION_LIMIT, OwnDesigns
 from couture.mesh import GarmentMesh
 from schemas.arrays import Array, as_array
 from schemas.convert import mesh_to_msg
@@ -39,9 +39,10 @@ EXPECTED_PRODUCERS = {
 }
 
 
-# what nodes/remesher/main.py writes into its status when validation fails;
-# the end-to-end test of ``couture drape`` on a bad design pins the format
-_REJECTED = re.compile(r"pattern generation (\d+) rejected: (.*)", re.S)
+# what nodes/remesher/main.py writes into its status when validation fails
+# (the generation asked for, the design's identity); the end-to-end test of
+# ``couture drape`` on a bad design pins the format
+_REJECTED = re.compile(r"pattern generation (\d+)(?: \(design ([^)]*)\))? rejected: (.*)", re.S)
 
 
 class PatternRejected(ValueError):
@@ -91,9 +92,14 @@ class Client:
         self._cond = threading.Condition()
         self._drapes: dict[str, list[DrapeMsg]] = {"coarse": [], "fine": [], "predicted": []}
         self._meshes: dict[str, MeshMsg] = {}
+        self._meshes_by_gen: dict[tuple[str, int], MeshMsg] = {}
+        """(level, generation) -> latest mesh of that design (the newest 16 designs)"""
         self.status: dict[str, StatusMsg] = {}
         """latest status message per node name"""
-        self._seen_generation = 0
+        self._top = 0
+        """the newest generation the remesher gave (seen on a mesh)"""
+        self._asked = 0
+        """the newest generation this client asked for"""
         self._own = OwnDesigns()
         self._followers: list[queue.SimpleQueue] = []
         self._bus: Bus | None = None
@@ -113,7 +119,6 @@ class Client:
             self._edit_pub = self.bus.publisher("edit", EditMsg)
             self.bus.subscribe("drape/*", self._on_drape, DrapeMsg)
             self.bus.subscribe("mesh/*", self._on_mesh, MeshMsg)
-            self.bus.subscribe("pattern", self._on_pattern, PatternMsg)
             self.bus.subscribe("status/*", self._on_status, StatusMsg)
         except BaseException:
             self.bus.close()
@@ -136,9 +141,16 @@ class Client:
     def _on_mesh(self, msg: MeshMsg) -> None:
         with self._cond:
             self._meshes[msg.level] = msg
+            if msg.generation < GENERATION_LIMIT:
+                # only the remesher numbers designs; a pattern's number is a request
+                self._top = max(self._top, msg.generation)
+            self._meshes_by_gen[(msg.level, msg.generation)] = msg
+            for key in sorted(self._meshes_by_gen, key=lambda k: k[1])[:-32]:
+                del self._meshes_by_gen[key]
             if msg.design_id:
                 self._own.meshed(msg.design_id, msg.generation)
-            self._seen_generation = max(self._seen_generation, msg.generation)
+            for q in self._followers:
+                q.put(msg)
             self._cond.notify_all()
 
     def _on_status(self, msg: StatusMsg) -> None:
@@ -146,10 +158,6 @@ class Client:
             self.status[msg.node] = msg
             for q in self._followers:
                 q.put(msg)
-
-    def _on_pattern(self, msg: PatternMsg) -> None:
-        with self._cond:
-            self._seen_generation = max(self._seen_generation, msg.generation)
 
     # -- API
     def drapes(self, kind: str = "fine") -> list[DrapeMsg]:
@@ -172,16 +180,16 @@ class Client:
         self, design: Design | str | os.PathLike, *, name: str = "", wait_subscribers_s: float = 5.0
     ) -> int:
         """Publish a design (or a pattern JSON path) under a new ``design_id``;
-        returns the generation it asks for (one more than the newest seen on
-        the bus, at least 1). The remesher numbers designs: when it gives
-        another number, :meth:`wait_drape` and :meth:`generation_of` know."""
+        returns the generation it asks for (one more than the newest the
+        remesher gave or this client asked for). The remesher numbers designs:
+        when it gives another number, :meth:`wait_drape`, :meth:`follow_drape`
+        and :meth:`generation_of` know it from its meshes."""
         if not isinstance(design, Design):
             name = name or Path(design).stem
             design = load_design(design)
         design_id = uuid.uuid4().hex
         with self._cond:
-            gen = self._seen_generation + 1
-            self._seen_generation = gen
+            gen = self._asked = max(self._asked, self._top) + 1
             self._own.add(design_id, gen)
         self._pattern_pub.wait_matching(wait_subscribers_s)
         self._pattern_pub.put(
@@ -195,6 +203,17 @@ class Client:
         if generation is not None and self._own.is_own(generation):
             return self._own.given(generation), True
         return generation, False
+
+    def design_id_of(self, requested: int) -> str | None:
+        """The design_id of this client's newest design that asked for ``requested``."""
+        return self._own.design_of(requested)
+
+    @property
+    def current_generation(self) -> int:
+        """The newest generation the remesher gave (0 before any mesh): the
+        design it holds, which an edit without a generation is made on."""
+        with self._cond:
+            return self._top
 
     def generation_of(self, requested: int, timeout: float = 60.0) -> int:
         """The generation the remesher gave this client's design that asked for
@@ -213,6 +232,12 @@ class Client:
                 self._cond.wait(left)
             return g
 
+    def mesh_of(self, generation: int, level: str = "fine") -> MeshMsg | None:
+        """The latest mesh of ``level`` of the design the remesher numbered
+        ``generation`` (one of the newest 16 designs), if seen."""
+        with self._cond:
+            return self._meshes_by_gen.get((level, generation))
+
     def send_edit(
         self,
         element: str,
@@ -224,14 +249,17 @@ class Client:
         generation: int | None = None,
         **extra: object,
     ) -> EditMsg:
-        """Send one edit message (press / drag / release); returns it (with its edit_id)."""
+        """Send one edit message (press / drag / release); returns it (with its
+        edit_id). ``generation``: the design it is made on (the remesher's
+        number), by default the newest the remesher gave; receivers reject a
+        press on any other design."""
         msg = EditMsg(
             edit_id=edit_id or uuid.uuid4().hex[:12],
             phase=phase,  # type: ignore[arg-type]
             element=element,
             dofs=list(dofs or ["x", "y"]),
             d=Array.from_numpy(np.asarray(d, np.float64)),
-            generation=self._seen_generation if generation is None else generation,
+            generation=self.current_generation if generation is None else generation,
             **extra,  # type: ignore[arg-type]
         )
         self._edit_pub.put(msg)
@@ -246,11 +274,13 @@ class Client:
         converged: bool | None = None,
         final: bool | None = None,
     ) -> DrapeMsg:
-        """The newest drape of ``kind`` ('fine', 'coarse', 'predicted') with
-        generation >= ``generation`` (any if None) that arrives or has arrived
-        since the client opened; for a generation this client's
-        :meth:`publish_pattern` returned, a drape of exactly that design.
-        Raises TimeoutError naming what was missing."""
+        """For a generation this client's :meth:`publish_pattern` returned, the
+        newest drape of ``kind`` ('fine', 'coarse', 'predicted') of exactly that
+        design (the number the remesher gave it); for another generation, the
+        newest with generation >= ``generation`` (any if None) among the numbers
+        the remesher gave (a drape numbered above every mesh seen is foreign).
+        Drapes that arrived since the client opened count. Raises TimeoutError
+        naming what was missing."""
         if kind not in self._drapes:
             raise ValueError(f"kind must be one of {list(self._drapes)}, got {kind!r}")
         deadline = time.monotonic() + timeout
@@ -261,7 +291,8 @@ class Client:
                 return None  # the remesher has not numbered our design yet
             for m in reversed(self._drapes[kind]):
                 if (
-                    (target is None or (m.generation == target if exact else m.generation >= target))
+                    (m.generation == target if exact else (target is None or m.generation >= target))
+                    and (exact or m.generation <= self._top)
                     and (converged is None or m.converged == converged)
                     and (final is None or m.final == final)
                 ):
@@ -295,32 +326,48 @@ class Client:
             hints.append(f"no {producer} node is live")
         elif not producer.endswith("*") and producer not in live:
             hints.append(f"{producer} is not live")
+        what = f"generation >= {generation}"
+        if generation is not None and self._own.is_own(generation):
+            given = self._own.given(generation)
+            what = f"this client's design {self._own.design_of(generation)} (asked for generation {generation}, " + (
+                "not numbered yet: no mesh of it arrived)" if given is None else f"numbered {given})"
+            )
         return TimeoutError(
-            f"no drape/{kind} for generation >= {generation} on session {self.cfg.session} within {timeout:g} s; "
+            f"no drape/{kind} for {what} on session {self.cfg.session} within {timeout:g} s; "
             f"meshes seen (level: generation): {meshes or 'none'}; last drapes: {drapes}; live nodes: {live or 'none'}"
             + ("; " + "; ".join(hints) if hints else "")
         )
 
     def rejection(self, generation: int) -> PatternRejected | None:
-        """The remesher's rejection of ``generation`` if its status reports one."""
+        """The remesher's rejection of ``generation`` if its status reports one:
+        for a number this client asked for, the rejection of exactly that design
+        (by its design_id; none once the remesher has numbered it)."""
+        own_id = self._own.design_of(generation)
+        if own_id is not None and self._own.given(generation) is not None:
+            return None
         with self._cond:
             statuses = list(self.status.values())
         for st in statuses:
             m = _REJECTED.match(st.last_error) if st.kind == "remesher" else None
-            if m is not None and int(m.group(1)) == generation:
-                return PatternRejected(generation, m.group(2), st.node)
+            if m is None:
+                continue
+            asked, named, reason = int(m.group(1)), m.group(2), m.group(3)
+            if (named == own_id) if (own_id is not None and named is not None) else (asked == generation):
+                return PatternRejected(generation, reason, st.node)
         return None
 
     def follow_drape(
         self, generation: int, timeout: float = 60.0, *, on_drape: Callable[[DrapeMsg], None] | None = None
     ) -> DrapeMsg:
-        """Wait for the final drape/fine of exactly ``generation``.
+        """Wait for the final drape/fine of exactly ``generation``: for a number
+        this client's :meth:`publish_pattern` returned, of exactly that design
+        (the number the remesher gave it, learnt from its meshes).
 
-        Every drape/coarse and drape/fine of that generation (progress
-        snapshots and each level's final) is passed to ``on_drape`` as it
-        arrives, in this thread, oldest first. Raises :class:`PatternRejected`
-        as soon as the remesher's status reports the design rejected (within
-        its status period, about 1 s) and TimeoutError after ``timeout`` [s]."""
+        Every drape/coarse and drape/fine of that design (progress snapshots
+        and each level's final) is passed to ``on_drape`` as it arrives, in
+        this thread, oldest first. Raises :class:`PatternRejected` as soon as
+        the remesher's status reports the design rejected (within its status
+        period, about 1 s) and TimeoutError after ``timeout`` [s]."""
         q: queue.SimpleQueue = queue.SimpleQueue()
         with self._cond:
             backlog = sorted((m for lv in ("coarse", "fine") for m in self._drapes[lv]), key=lambda m: m.stamp_ns)
@@ -328,6 +375,8 @@ class Client:
                 q.put(m)
             self._followers.append(q)
         deadline = time.monotonic() + timeout
+        early: list[DrapeMsg] = []
+        """drapes that arrived before the remesher's number for our design was known"""
         try:
             if (rej := self.rejection(generation)) is not None:
                 raise rej
@@ -340,12 +389,20 @@ class Client:
                     if (rej := self.rejection(generation)) is not None:
                         raise rej
                     continue
-                if msg.generation != generation or msg.level not in ("coarse", "fine"):
+                target, exact = self._target(generation)
+                if exact and target is None:
+                    if isinstance(msg, DrapeMsg):
+                        early.append(msg)
+                        del early[:-256]
                     continue
-                if on_drape is not None:
-                    on_drape(msg)
-                if msg.level == "fine" and msg.final:
-                    return msg
+                batch, early = [*early, msg], []
+                for m in batch:
+                    if not isinstance(m, DrapeMsg) or m.generation != target or m.level not in ("coarse", "fine"):
+                        continue
+                    if on_drape is not None:
+                        on_drape(m)
+                    if m.level == "fine" and m.final:
+                        return m
         finally:
             with self._cond:
                 self._followers.remove(q)

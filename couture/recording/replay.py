@@ -27,7 +27,7 @@ from couture.bus import BusConfig, StopFlag, open_session
 from couture.recording.mcapio import check_payload, read_session
 from couture.recording.parts import describe, resolve
 from schemas import topics as topic_table
-from schemas.messages import DrapeMsg, Message, decode
+from schemas.messages import DrapeMsg, MeshMsg, Message, PatternMsg, decode
 
 log = logging.getLogger("couture.replay")
 
@@ -49,9 +49,10 @@ class ReplayConfig:
     linger_s: float = 0.2
     """keep the session open this long after the last message so it drains"""
     lockstep: bool = False
-    """after each pattern message, wait for the final drape/fine of its
-    generation before sending anything else: the outputs then do not depend on
-    how fast the machine is (no solve is cut short by the next input)"""
+    """after each pattern message, wait for the final drape/fine of its design
+    (the generation the remesher gave it, from the mesh naming its identity)
+    before sending anything else: the outputs then do not depend on how fast
+    the machine is (no solve is cut short by the next input)"""
     lockstep_timeout_s: float = 300.0
     """[s] to wait for each drape/fine in lockstep mode"""
     parts: bool = True
@@ -96,27 +97,41 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
                 if config.require_subscribers:
                     raise TimeoutError(text)
                 log.warning(text)
-        done_gen = [-1]
+        # lockstep: each pattern's design is numbered by the remesher (its meshes
+        # echo the design's identity with the number), then waited for by that number
+        given: dict[str, int] = {}
+        done: set[int] = set()
         cv = threading.Condition()
         if config.lockstep:
+
+            def on_mesh(msg: MeshMsg) -> None:
+                if msg.level == "fine" and msg.design_id:
+                    with cv:
+                        given[msg.design_id] = msg.generation
+                        cv.notify_all()
 
             def on_drape(msg: DrapeMsg) -> None:
                 if msg.final:
                     with cv:
-                        done_gen[0] = max(done_gen[0], msg.generation)
+                        done.add(msg.generation)
                         cv.notify_all()
 
+            bus.subscribe("mesh/fine", on_mesh, MeshMsg)
             bus.subscribe("drape/fine", on_drape, DrapeMsg)
 
-        def wait_outputs(generation: int) -> None:
+        def wait_outputs(pattern: PatternMsg) -> None:
             deadline = time.monotonic() + config.lockstep_timeout_s
+            key = pattern.identity()
             with cv:
-                while done_gen[0] < generation and not stop.is_set():
+                while given.get(key) not in done and not stop.is_set():
                     left = deadline - time.monotonic()
                     if left <= 0:
+                        g = given.get(key)
                         raise TimeoutError(
-                            f"replay --lockstep: no final drape/fine for generation {generation} "
-                            f"within {config.lockstep_timeout_s:g} s"
+                            f"replay --lockstep: no final drape/fine for design {key} (asked for generation "
+                            f"{pattern.generation}, "
+                            + ("no mesh of it: the remesher never numbered it" if g is None else f"numbered {g}")
+                            + f") within {config.lockstep_timeout_s:g} s"
                         )
                     cv.wait(min(left, 0.1))
 
@@ -131,10 +146,14 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
                     delay = due - time.monotonic()
                     if delay > 0:
                         stop.wait(delay)
+                pattern = decode(m.data, PatternMsg) if config.lockstep and m.topic == "pattern" else None
+                if pattern is not None:
+                    with cv:  # the number it gets now (a looped replay re-sends a design)
+                        given.pop(pattern.identity(), None)
                 pubs[m.topic].put_raw(m.data)
                 sent += 1
-                if config.lockstep and m.topic == "pattern":
-                    wait_outputs(decode(m.data).generation)
+                if pattern is not None:
+                    wait_outputs(pattern)
             if not config.loop or stop.is_set():
                 break
         time.sleep(config.linger_s)

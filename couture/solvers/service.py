@@ -26,7 +26,7 @@ from typing import Callable
 import numpy as np
 
 from couture.cloth.model import ClothModel, Scene
-from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome
+from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome, Verdict, judge
 from couture.mesh import GarmentMesh
 from couture.solvers import get_solver
 from couture.solvers.base import SolveResult
@@ -112,6 +112,17 @@ class SolveService:
         """A ``mesh/<level>``: matched with its design (then :meth:`take` it),
         parked until its pattern arrives, or dropped as stale or a repeat."""
         return self.matcher.add_mesh(MeshArrival(level, generation, mesh_generation, incoming, design_id))
+
+    @property
+    def generation(self) -> int:
+        """The remesher's number for the newest design whose mesh this solver
+        matched (it solves that one next), -1 before any."""
+        return self.matcher.newest
+
+    def judge_edit(self, generation: int) -> Verdict:
+        """Whether an edit (or a prediction) made on the design of ``generation``
+        is on this solver's newest design."""
+        return judge(generation, self.matcher.newest)
 
     def take(self, matched: Matched[IncomingMesh]) -> bool:
         """Adopt a matched mesh and its design; True when both levels of one
