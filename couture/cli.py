@@ -31,7 +31,12 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="cmd", required=True)
 
     up = sub.add_parser("up", help="start every node (own processes, restarted on crash)")
-    up.add_argument("--record", metavar="FILE", help="also record the session to this MCAP file")
+    up.add_argument(
+        "--record",
+        metavar="FILE",
+        help="also record the session to this MCAP file (never written over: when it exists, or when the "
+        "recorder restarts, the next numbered part FILE-stem.<n>.mcap; replay FILE reads them all)",
+    )
     up.add_argument("--no-ui", action="store_true", help="do not start the web UI node")
     up.add_argument(
         "--solver",
@@ -54,7 +59,10 @@ def _parser() -> argparse.ArgumentParser:
 
     inputs, outputs = " ".join(replayed_topics()), " ".join(compared_topics())
     rp = sub.add_parser("replay", help=f"publish recorded inputs ({inputs}) onto the bus")
-    rp.add_argument("path")
+    rp.add_argument(
+        "path", nargs="+", help="recording(s): each file is read with its numbered parts (session.1.mcap, ...)"
+    )
+    rp.add_argument("--exact", action="store_true", help="read exactly the files given, not their numbered parts")
     rp.add_argument("--topics", nargs="+", default=None, help=f"relative topics to replay (default: {inputs})")
     rp.add_argument(
         "--rate", type=float, default=1.0, help="1: original timing, R: R times faster, 0: as fast as possible"
@@ -72,16 +80,20 @@ def _parser() -> argparse.ArgumentParser:
     add_bus_args(rp)
 
     cp = sub.add_parser("compare", help="compare outputs of two recordings within tolerances")
-    cp.add_argument("golden")
-    cp.add_argument("actual")
+    cp.add_argument("golden", help="golden recording (read with its numbered parts)")
+    cp.add_argument("actual", help="actual recording (read with its numbered parts)")
     cp.add_argument("--json", metavar="OUT", help="write the report as JSON")
     cp.add_argument("--rtol", type=float, default=1e-5)
     cp.add_argument("--atol", type=float, default=1e-8, help="absolute tolerance [m for positions]")
     cp.add_argument("--topics", nargs="+", default=None, help=f"output topics (default: {outputs})")
 
-    rc = sub.add_parser("recover", help="rewrite a recording cut short (SIGKILL) into a finalized MCAP")
-    rc.add_argument("src")
-    rc.add_argument("dst")
+    rc = sub.add_parser(
+        "recover",
+        help="rewrite a recording cut short (SIGKILL), with its numbered parts, into one finalized MCAP",
+    )
+    rc.add_argument("src", nargs="+", help="recording(s): each read with its numbered parts, up to the last flush")
+    rc.add_argument("dst", help="new file (must not exist)")
+    rc.add_argument("--exact", action="store_true", help="read exactly the files given, not their numbered parts")
 
     fx = sub.add_parser(
         "export-foxglove", help="copy a recording and add Foxglove-viewable channels (drape, body, pattern, log)"
@@ -147,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         return int(_dispatch(args) or 0)
-    except (TimeoutError, ValueError, FileNotFoundError, RuntimeError) as e:
+    except (TimeoutError, ValueError, FileNotFoundError, FileExistsError, RuntimeError) as e:
         print(f"couture {args.cmd}: error: {e}", file=sys.stderr)
         return 1
 
@@ -183,6 +195,7 @@ def _dispatch(args: argparse.Namespace) -> int:
 
         cfg = ReplayConfig(
             path=args.path,
+            parts=not args.exact,
             bus=bus_config_from_args(args),
             rate=args.rate,
             loop=args.loop,
@@ -207,9 +220,11 @@ def _dispatch(args: argparse.Namespace) -> int:
 
     if args.cmd == "recover":
         from couture.recording.mcapio import recover
+        from couture.recording.parts import describe, resolve
 
-        n = recover(args.src, args.dst)
-        print(f"recovered {n} messages into {args.dst}")
+        files = resolve(args.src, parts=not args.exact)
+        n = recover(files, args.dst, parts=False)
+        print(f"recovered {n} messages from {describe(files)} into {args.dst}")
         return 0
 
     if args.cmd == "export-foxglove":
@@ -447,7 +462,11 @@ def drape(
         if not bus.connect:
             client.wait_nodes(["remesher", f"solver-{solver}"], timeout=min(30.0, timeout))
         gen = client.publish_pattern(design, name=Path(pattern).stem)
-        print(f"[drape] {pattern}: generation {gen}, solver {solver}", file=sys.stderr, flush=True)
+        print(
+            f"[drape] {pattern}: design {client.design_id_of(gen)} (asks for generation {gen}), solver {solver}",
+            file=sys.stderr,
+            flush=True,
+        )
         try:
             d = client.follow_drape(gen, timeout=timeout, on_drape=progress)
         except PatternRejected as e:
@@ -461,11 +480,13 @@ def drape(
         progress.close()
         if "fine" not in progress.finals:  # joined after the fine result was already out
             print(f"[drape] fine: {_describe(d, tol['fine'])}", file=sys.stderr, flush=True)
-        mesh = client.latest_mesh("fine")
-        if mesh is None or mesh.generation != d.generation or mesh.X.shape[0] != d.x.shape[0]:
+        # the mesh of exactly this design (another client's may have come since)
+        mesh = client.mesh_of(d.generation, "fine")
+        if mesh is None or mesh.mesh_generation != d.mesh_generation or mesh.X.shape[0] != d.x.shape[0]:
             raise RuntimeError(
-                f"drape/fine for generation {d.generation} arrived but no matching mesh/fine "
-                f"(have {None if mesh is None else (mesh.generation, mesh.X.shape[0])})"
+                f"drape/fine for generation {d.generation} (mesh {d.mesh_generation}, {d.x.shape[0]} vertices) "
+                f"arrived but no matching mesh/fine (have "
+                f"{None if mesh is None else (mesh.generation, mesh.mesh_generation, mesh.X.shape[0])})"
             )
         out_dir.mkdir(parents=True, exist_ok=True)
         write_obj(out_dir / "drape.obj", d.x.numpy(), mesh.tris.numpy(), mesh.X.numpy())
@@ -481,6 +502,8 @@ def drape(
             dumps(
                 {
                     "generation": d.generation,
+                    "design_id": mesh.design_id,
+                    "mesh_generation": d.mesh_generation,
                     "solver": d.solver,
                     "method": d.method,
                     "residual": d.residual,

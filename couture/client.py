@@ -27,7 +27,7 @@ import msgspec
 import numpy as np
 
 from couture.bus import DEFAULT_ENDPOINT, Bus, BusConfig, open_session
-from couture.designs import OwnDesigns
+from couture.designs import GENERATION_LIMIT, OwnDesigns
 from couture.mesh import GarmentMesh
 from schemas.arrays import Array, as_array
 from schemas.convert import mesh_to_msg
@@ -56,16 +56,23 @@ class PatternRejected(ValueError):
     field or pattern element ('fabric.area_density', 'param:length'; '' when
     unknown), ``reason`` the whole message with the value and allowed range."""
 
-    def __init__(self, generation: int, reason: str, node: str = "remesher", element: str = "") -> None:
-        super().__init__(f"{node} rejected pattern generation {generation}: {reason}")
+    def __init__(
+        self, generation: int, reason: str, node: str = "remesher", element: str = "", design_id: str = ""
+    ) -> None:
+        design = f" (design {design_id})" if design_id else ""
+        super().__init__(f"{node} rejected pattern generation {generation}{design}: {reason}")
         self.generation = generation
+        """the rejection's generation: the number the pattern asked for (the
+        remesher gives a rejected design none), or the one its mesh carries (a solver)"""
         self.reason = reason
         self.node = node
         self.element = element
+        self.design_id = design_id
+        """the rejected design's identity (:meth:`schemas.messages.PatternMsg.identity`)"""
 
     @classmethod
     def from_msg(cls, msg: RejectedMsg) -> "PatternRejected":
-        return cls(msg.generation, msg.reason, msg.node, msg.element)
+        return cls(msg.generation, msg.reason, msg.node, msg.element, msg.design_id)
 
 
 def load_design(path: str | os.PathLike) -> Design:
@@ -108,12 +115,15 @@ class Client:
         self._cond = threading.Condition()
         self._drapes: dict[str, list[DrapeMsg]] = {"coarse": [], "fine": [], "predicted": []}
         self._meshes: dict[str, MeshMsg] = {}
+        self._meshes_by_gen: dict[tuple[str, int], MeshMsg] = {}
+        """(level, generation) -> latest mesh of that design (the newest 16 designs)"""
         self.status: dict[str, StatusMsg] = {}
         """latest status message per node name"""
-        self._seen_generation = 0
+        self._top = 0
+        """the newest generation the remesher gave (seen on a mesh)"""
+        self._asked = 0
+        """the newest generation this client asked for"""
         self._own = OwnDesigns()
-        self._asked: OrderedDict[int, str] = OrderedDict()
-        """generation asked for -> design_id of this client's newest design that asked for it"""
         self._rejected: OrderedDict[tuple[str, str], RejectedMsg] = OrderedDict()
         """(design_id, or '#<generation>' when it had none; node) -> that node's first rejection of that design"""
         self._followers: list[queue.SimpleQueue] = []
@@ -134,7 +144,6 @@ class Client:
             self._edit_pub = self.bus.publisher("edit", EditMsg)
             self.bus.subscribe("drape/*", self._on_drape, DrapeMsg)
             self.bus.subscribe("mesh/*", self._on_mesh, MeshMsg)
-            self.bus.subscribe("pattern", self._on_pattern, PatternMsg)
             self.bus.subscribe("status/*", self._on_status, StatusMsg)
             self.bus.subscribe("rejected", self._on_rejected, RejectedMsg)
         except BaseException:
@@ -158,9 +167,16 @@ class Client:
     def _on_mesh(self, msg: MeshMsg) -> None:
         with self._cond:
             self._meshes[msg.level] = msg
+            if msg.generation < GENERATION_LIMIT:
+                # only the remesher numbers designs; a pattern's number is a request
+                self._top = max(self._top, msg.generation)
+            self._meshes_by_gen[(msg.level, msg.generation)] = msg
+            for key in sorted(self._meshes_by_gen, key=lambda k: k[1])[:-32]:
+                del self._meshes_by_gen[key]
             if msg.design_id:
                 self._own.meshed(msg.design_id, msg.generation)
-            self._seen_generation = max(self._seen_generation, msg.generation)
+            for q in self._followers:
+                q.put(msg)
             self._cond.notify_all()
 
     def _on_status(self, msg: StatusMsg) -> None:
@@ -179,10 +195,6 @@ class Client:
             for q in self._followers:
                 q.put(msg)
             self._cond.notify_all()
-
-    def _on_pattern(self, msg: PatternMsg) -> None:
-        with self._cond:
-            self._seen_generation = max(self._seen_generation, msg.generation)
 
     # -- API
     def drapes(self, kind: str = "fine") -> list[DrapeMsg]:
@@ -205,21 +217,17 @@ class Client:
         self, design: Design | str | os.PathLike, *, name: str = "", wait_subscribers_s: float = 5.0
     ) -> int:
         """Publish a design (or a pattern JSON path) under a new ``design_id``;
-        returns the generation it asks for (one more than the newest seen on
-        the bus, at least 1). The remesher numbers designs: when it gives
-        another number, :meth:`wait_drape` and :meth:`generation_of` know."""
+        returns the generation it asks for (one more than the newest the
+        remesher gave or this client asked for). The remesher numbers designs:
+        when it gives another number, :meth:`wait_drape`, :meth:`follow_drape`
+        and :meth:`generation_of` know it from its meshes."""
         if not isinstance(design, Design):
             name = name or Path(design).stem
             design = load_design(design)
         design_id = uuid.uuid4().hex
         with self._cond:
-            gen = self._seen_generation + 1
-            self._seen_generation = gen
+            gen = self._asked = max(self._asked, self._top) + 1
             self._own.add(design_id, gen)
-            self._asked[gen] = design_id
-            self._asked.move_to_end(gen)
-            while len(self._asked) > 256:
-                self._asked.popitem(last=False)
         self._pattern_pub.wait_matching(wait_subscribers_s)
         self._pattern_pub.put(
             PatternMsg(design=design, generation=gen, design_id=design_id, source="client", name=name)
@@ -232,6 +240,17 @@ class Client:
         if generation is not None and self._own.is_own(generation):
             return self._own.given(generation), True
         return generation, False
+
+    def design_id_of(self, requested: int) -> str | None:
+        """The design_id of this client's newest design that asked for ``requested``."""
+        return self._own.design_of(requested)
+
+    @property
+    def current_generation(self) -> int:
+        """The newest generation the remesher gave (0 before any mesh): the
+        design it holds, which an edit without a generation is made on."""
+        with self._cond:
+            return self._top
 
     def generation_of(self, requested: int, timeout: float = 60.0) -> int:
         """The generation the remesher gave this client's design that asked for
@@ -252,6 +271,12 @@ class Client:
                 self._cond.wait(left)
             return g
 
+    def mesh_of(self, generation: int, level: str = "fine") -> MeshMsg | None:
+        """The latest mesh of ``level`` of the design the remesher numbered
+        ``generation`` (one of the newest 16 designs), if seen."""
+        with self._cond:
+            return self._meshes_by_gen.get((level, generation))
+
     def send_edit(
         self,
         element: str,
@@ -263,14 +288,17 @@ class Client:
         generation: int | None = None,
         **extra: object,
     ) -> EditMsg:
-        """Send one edit message (press / drag / release); returns it (with its edit_id)."""
+        """Send one edit message (press / drag / release); returns it (with its
+        edit_id). ``generation``: the design it is made on (the remesher's
+        number), by default the newest the remesher gave; receivers reject a
+        press on any other design."""
         msg = EditMsg(
             edit_id=edit_id or uuid.uuid4().hex[:12],
             phase=phase,  # type: ignore[arg-type]
             element=element,
             dofs=list(dofs or ["x", "y"]),
             d=Array.from_numpy(np.asarray(d, np.float64)),
-            generation=self._seen_generation if generation is None else generation,
+            generation=self.current_generation if generation is None else generation,
             **extra,  # type: ignore[arg-type]
         )
         self._edit_pub.put(msg)
@@ -285,13 +313,15 @@ class Client:
         converged: bool | None = None,
         final: bool | None = None,
     ) -> DrapeMsg:
-        """The newest drape of ``kind`` ('fine', 'coarse', 'predicted') with
-        generation >= ``generation`` (any if None) that arrives or has arrived
-        since the client opened; for a generation this client's
-        :meth:`publish_pattern` returned, a drape of exactly that design.
-        Raises :class:`PatternRejected` as soon as a node rejects that design
-        (one this client published), TimeoutError naming what was missing
-        after ``timeout`` [s]."""
+        """For a generation this client's :meth:`publish_pattern` returned, the
+        newest drape of ``kind`` ('fine', 'coarse', 'predicted') of exactly that
+        design (the number the remesher gave it); for another generation, the
+        newest with generation >= ``generation`` (any if None) among the numbers
+        the remesher gave (a drape numbered above every mesh seen is foreign).
+        Drapes that arrived since the client opened count. Raises
+        :class:`PatternRejected` as soon as a node rejects that design (one
+        this client published), TimeoutError naming what was missing after
+        ``timeout`` [s]."""
         if kind not in self._drapes:
             raise ValueError(f"kind must be one of {list(self._drapes)}, got {kind!r}")
         deadline = time.monotonic() + timeout
@@ -302,7 +332,8 @@ class Client:
                 return None  # the remesher has not numbered our design yet
             for m in reversed(self._drapes[kind]):
                 if (
-                    (target is None or (m.generation == target if exact else m.generation >= target))
+                    (m.generation == target if exact else (target is None or m.generation >= target))
+                    and (exact or m.generation <= self._top)
                     and (converged is None or m.converged == converged)
                     and (final is None or m.final == final)
                 ):
@@ -311,7 +342,11 @@ class Client:
 
         with self._cond:
             while (m := find()) is None:
-                if generation is not None and generation in self._asked and (rej := self._rejection_locked(generation)):
+                if (
+                    generation is not None
+                    and self._own.is_own(generation)
+                    and (rej := self._rejection_locked(generation))
+                ):
                     raise rej  # our design: its rejection is the answer (another's may be followed by a drape >= it)
                 left = deadline - time.monotonic()
                 if left <= 0:
@@ -338,16 +373,25 @@ class Client:
             hints.append(f"no {producer} node is live")
         elif not producer.endswith("*") and producer not in live:
             hints.append(f"{producer} is not live")
+        what = f"generation >= {generation}"
+        if generation is not None and self._own.is_own(generation):
+            given = self._own.given(generation)
+            what = f"this client's design {self._own.design_of(generation)} (asked for generation {generation}, " + (
+                "not numbered yet: no mesh of it arrived)" if given is None else f"numbered {given})"
+            )
         return TimeoutError(
-            f"no drape/{kind} for generation >= {generation} on session {self.cfg.session} within {timeout:g} s; "
+            f"no drape/{kind} for {what} on session {self.cfg.session} within {timeout:g} s; "
             f"meshes seen (level: generation): {meshes or 'none'}; last drapes: {drapes}; live nodes: {live or 'none'}"
             + ("; " + "; ".join(hints) if hints else "")
         )
 
     def rejection(self, generation: int) -> PatternRejected | None:
         """A node's rejection of the design that asked for ``generation``, if
-        one arrived: for a generation this client's :meth:`publish_pattern`
-        returned, the rejection of exactly that design (by ``design_id``)."""
+        one arrived. For a generation this client's :meth:`publish_pattern`
+        returned, the rejection of exactly that design (by its ``design_id``):
+        before the remesher numbered it, any node's; once numbered (the
+        remesher took it), only one of the mesh it numbered (a solver's), so a
+        re-sent or forged pattern under the same id is not taken for it."""
         with self._cond:
             return self._rejection_locked(generation)
 
@@ -357,24 +401,30 @@ class Client:
             return list(self._rejected.values())
 
     def _rejection_locked(self, generation: int) -> PatternRejected | None:
-        design_id = self._asked.get(generation)
-        if design_id is not None:
-            msg = next((m for (d, _), m in self._rejected.items() if d == design_id), None)
-        else:  # not ours: a rejection of a design that asked for that number
+        own_id = self._own.design_of(generation)
+        if own_id is not None:
+            given = self._own.given(generation)
+            msg = next(
+                (m for (d, _), m in self._rejected.items() if d == own_id and (given is None or m.generation == given)),
+                None,
+            )
+        else:  # not ours: a rejection of a design that asked for (or was numbered) that number
             msg = next((m for m in reversed(self._rejected.values()) if m.generation == generation), None)
         return None if msg is None else PatternRejected.from_msg(msg)
 
     def follow_drape(
         self, generation: int, timeout: float = 60.0, *, on_drape: Callable[[DrapeMsg], None] | None = None
     ) -> DrapeMsg:
-        """Wait for the final drape/fine of exactly ``generation``.
+        """Wait for the final drape/fine of exactly ``generation``: for a number
+        this client's :meth:`publish_pattern` returned, of exactly that design
+        (the number the remesher gave it, learnt from its meshes).
 
-        Every drape/coarse and drape/fine of that generation (progress
-        snapshots and each level's final) is passed to ``on_drape`` as it
-        arrives, in this thread, oldest first. Raises :class:`PatternRejected`
-        as soon as a node rejects the design (the ``rejected`` message, sent
-        the moment the remesher or a solver refuses it) and TimeoutError
-        after ``timeout`` [s]."""
+        Every drape/coarse and drape/fine of that design (progress snapshots
+        and each level's final) is passed to ``on_drape`` as it arrives, in
+        this thread, oldest first. Raises :class:`PatternRejected` as soon as
+        a node rejects the design (the ``rejected`` message, sent the moment
+        the remesher or a solver refuses it) and TimeoutError after
+        ``timeout`` [s]."""
         q: queue.SimpleQueue = queue.SimpleQueue()
         with self._cond:
             backlog = sorted((m for lv in ("coarse", "fine") for m in self._drapes[lv]), key=lambda m: m.stamp_ns)
@@ -382,6 +432,8 @@ class Client:
                 q.put(m)
             self._followers.append(q)
         deadline = time.monotonic() + timeout
+        early: list[DrapeMsg] = []
+        """drapes that arrived before the remesher's number for our design was known"""
         try:
             if (rej := self.rejection(generation)) is not None:
                 raise rej
@@ -396,12 +448,20 @@ class Client:
                     continue
                 if isinstance(msg, StatusMsg):
                     continue
-                if msg.generation != generation or msg.level not in ("coarse", "fine"):
+                target, exact = self._target(generation)
+                if exact and target is None:
+                    if isinstance(msg, DrapeMsg):
+                        early.append(msg)
+                        del early[:-256]
                     continue
-                if on_drape is not None:
-                    on_drape(msg)
-                if msg.level == "fine" and msg.final:
-                    return msg
+                batch, early = [*early, msg], []
+                for m in batch:
+                    if not isinstance(m, DrapeMsg) or m.generation != target or m.level not in ("coarse", "fine"):
+                        continue
+                    if on_drape is not None:
+                        on_drape(m)
+                    if m.level == "fine" and m.final:
+                        return m
         finally:
             with self._cond:
                 self._followers.remove(q)

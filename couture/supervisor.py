@@ -14,6 +14,11 @@ restarted after an exponential backoff (``backoff_initial_s`` doubling up to
 (SIGINT/SIGTERM): SIGTERM to every child's group (the recorder last, so it
 records the others leaving), wait ``term_timeout_s``, SIGKILL stragglers.
 
+The recorder (``--record FILE``) gets one run id for the whole ``up``: the
+file it writes is never reopened for writing, so a recorder restarted after
+a crash writes ``<stem>.1.mcap``, ``<stem>.2.mcap``, ... (FILE itself when it
+did not exist yet), and ``couture replay FILE`` reads them as one recording.
+
 Adding a node: append a :class:`NodeSpec` in :func:`default_nodes` (module
 ``nodes.<name>`` with a ``__main__`` that takes the bus flags plus
 ``--name``).
@@ -28,6 +33,7 @@ import subprocess
 import sys
 import threading
 import time
+import uuid
 from dataclasses import dataclass, field
 
 from couture.bus import DEFAULT_ENDPOINT, DEFAULT_PORT, PARENT_PID_ENV, Bus, BusConfig, StopFlag, open_session
@@ -81,7 +87,12 @@ def default_nodes(
     if ui:
         nodes.append(NodeSpec("ui", "nodes.ui", ["--host", ui_host, "--port", str(ui_port)]))
     if record:
-        nodes.append(NodeSpec("recorder", "couture.recording", ["--out", record, "--quiet"], stop_last=True))
+        # one run id for every restart: a restarted recorder writes the next
+        # numbered part of this recording (never over the file it had open)
+        run_id = uuid.uuid4().hex
+        nodes.append(
+            NodeSpec("recorder", "couture.recording", ["--out", record, "--quiet", "--run-id", run_id], stop_last=True)
+        )
     return nodes
 
 

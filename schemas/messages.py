@@ -112,6 +112,12 @@ class PatternMsg(Message, kw_only=True):
     the number the publisher asks for: the remesher numbers designs, and the
     meshes (hence the drapes) carry the number it gave"""
 
+    def identity(self) -> str:
+        """The design's identity: ``design_id``, or for a pattern published
+        without one, a name every receiver derives alike from its header
+        (publisher, sequence number, send time)."""
+        return self.design_id or f"unnamed:{self.source}:{self.seq}:{self.stamp_ns}"
+
 
 class EditMsg(Message, kw_only=True):
     """A drag of a pattern element. ui -> remesher (Ψ on press), sensitivity

@@ -244,7 +244,7 @@ def test_follow_drape_passes_its_generation_on_and_raises_on_the_remeshers_rejec
     assert e.value.element == "param:length" and e.value.node == "remesher"
 
     # a design this client published is matched by its design_id, not by the number it asked for
-    client._asked[7] = "ours"
+    client._own.add("ours", 7)
     client._on_rejected(RejectedMsg(node="remesher", generation=7, design_id="theirs", reason="x: bad"))
     assert client.rejection(7) is None
     client._on_rejected(

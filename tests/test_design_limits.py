@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 
 import msgspec
+import numpy as np
 import pytest
 
 from couture.pattern import PatternError
@@ -16,7 +17,7 @@ from couture.pattern.limits import FABRIC_LIMITS, RESOLUTION_LIMITS, Limit, chec
 from couture.pattern.validate import validate
 from couture.solvers.service import SolveService
 from couture.ui.state import FABRIC_PRESETS
-from schemas.design import Body, Design, Fabric, Resolution
+from schemas.design import Body, Design, Fabric, Resolution, SceneFlags
 
 BAD_FABRIC = [
     # field, value, a piece of the allowed range as the message prints it
@@ -107,3 +108,37 @@ def test_solver_service_refuses_a_bad_fabric_and_keeps_its_design():
     with pytest.raises(PatternError, match=r"fabric.area_density: 0 kg/m\^2 is outside the allowed range"):
         service.set_design(bad)
     assert service.design is good
+
+
+def test_a_refused_mesh_does_not_count_as_taken():
+    """A mesh whose design the solver refuses, numbered far above the
+    remesher's (sent past it), leaves the matcher as it was: the remesher's
+    next meshes are not stale, and edits are judged against the design held."""
+    from couture.mesh import grid_sheet
+    from couture.solvers.service import IncomingMesh
+
+    def incoming(level: str, generation: int) -> IncomingMesh:
+        m = grid_sheet(0.4, 0.4, 5, 5)
+        m.level, m.generation = level, generation
+        m.pinned = np.nonzero(m.X[:, 1] > 0.4 - 1e-9)[0].astype(np.int32)
+        return IncomingMesh(m)
+
+    service = SolveService(method="newton")
+    no_body = SceneFlags(body=False, friction=False)
+    good, bad = Design(scene=no_body), Design(scene=no_body, fabric=Fabric(stretch_stiffness=0.0))
+    service.offer_design(3, good, "good")
+    for level, mg in (("coarse", 5), ("fine", 6)):
+        out = service.offer_mesh(level, 3, mg, incoming(level, 3), "good")
+        assert out.matched is not None
+        service.take(out.matched)
+    service.offer_design(50, bad, "bad")
+    out = service.offer_mesh("coarse", 50, 10_000, incoming("coarse", 50), "bad")
+    assert out.matched is not None
+    with pytest.raises(PatternError, match="fabric.stretch_stiffness"):
+        service.take(out.matched)
+    assert service.design is good and service.generation == 3 and service.judge_edit(3) == "current"
+    service.offer_design(4, good2 := Design(scene=no_body, fabric=Fabric(stretch_stiffness=50.0)), "good2")
+    out = service.offer_mesh("coarse", 4, 7, incoming("coarse", 4), "good2")
+    assert out.status == "matched" and out.matched is not None
+    service.take(out.matched)
+    assert service.design is good2 and service.generation == 4

@@ -1,10 +1,13 @@
 """Recording with a real recorder process: record -> replay -> compare, and
 crash tolerance (SIGTERM finalizes; SIGKILL loses nothing before the last
-flush and `couture recover` restores it)."""
+flush and `couture recover` restores it; a recorder restarted by the
+supervisor writes the next numbered part, never over the file it had open;
+garbage on a recorded topic is recorded apart and never replayed)."""
 
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -13,14 +16,17 @@ import time
 import uuid
 from pathlib import Path
 
+import msgspec
 import numpy as np
 import pytest
 from mcap.reader import make_reader
 
+from couture import supervisor
 from couture.bus import BusConfig, free_port, open_session
 from couture.mesh import grid_sheet
 from couture.recording import SessionWriter, compare, read_session
-from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, decode, encode
+from couture.recording.parts import INFO_NAME, create_part, expand
+from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, StatusMsg, decode, encode
 from schemas.convert import mesh_to_msg
 from schemas.design import Design, Sloper
 
@@ -238,3 +244,201 @@ def test_compare_reports_missing_and_integer_mismatch(tmp_path):
     assert any("$.tris" in f and "integers must match" in f for f in rep.topics["mesh/fine"].failures)
     assert rep.first_deviation.startswith("mesh/fine gen=1")
     assert compare(str(tmp_path / "g.mcap"), str(tmp_path / "g.mcap")).ok
+
+
+def _wait_for(cond, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.05)
+
+
+def _gens(path: Path, **kw) -> list[int]:
+    return [decode(m.data).generation for m in read_session(str(path), ["pattern"], **kw)]
+
+
+def _publish_patterns(pub, gens) -> None:
+    for g in gens:
+        pub.put(PatternMsg(generation=g, source="test"))
+
+
+def _replay_collect(paths: list[Path], endpoint: str, expect: int, *extra: str) -> tuple[list[bytes], str]:
+    """`couture replay PATHS` into a fresh session; the raw payloads that
+    arrive on its pattern key, and replay's stderr."""
+    s = f"p{uuid.uuid4().hex[:8]}"
+    got: list[bytes] = []
+    with open_session(BusConfig(session=s, listen=[endpoint])) as bus:
+        bus.subscribe_raw(bus.key("pattern"), lambda _k, data, _t: got.append(data))
+        r = subprocess.run(
+            [*CLI, "replay", *map(str, paths), *extra, "--rate", "0", "--session", s, "--connect", endpoint],
+            capture_output=True,
+            text=True,
+            timeout=30,
+        )
+        assert r.returncode == 0, r.stderr
+        _wait_for(lambda: len(got) >= expect, 10, f"{expect} replayed patterns (have {len(got)})")
+        time.sleep(0.3)  # anything more would be a wrong answer: give it a chance to show
+    return got, r.stderr
+
+
+def test_recorder_killed_and_restarted_by_supervisor_writes_a_numbered_part(tmp_path):
+    """kill -9 of the recorder under `couture up`'s supervisor: the file it had
+    open keeps every message flushed before the kill, byte for byte; the
+    restarted recorder writes session.1.mcap; the set reads, recovers and
+    replays as one recording, in order."""
+    out, log = tmp_path / "session.mcap", tmp_path / "nodes.log"
+    s = f"r{uuid.uuid4().hex[:8]}"
+    nodes = supervisor.default_nodes(ui=False, record=str(out))
+    nodes = [n for n in nodes if n.name == "recorder"]
+    nodes[0].args += ["--flush-interval", "0.2"]
+    cfg = supervisor.SupervisorConfig(
+        bus=BusConfig(session=s, listen=[f"tcp/127.0.0.1:{free_port()}"]),
+        nodes=nodes,
+        backoff_initial_s=0.2,
+        child_log=str(log),
+    )
+    first, second = list(range(1, 31)), list(range(1001, 1021))
+    with supervisor.Supervisor(cfg) as sup, open_session(sup.child_bus) as bus:
+        events: list[tuple[str, bool]] = []
+        bus.watch_nodes(lambda node, alive: events.append((node, alive)))
+        assert bus.wait_nodes(["recorder"], 30) == [], log.read_text()
+        pub = bus.publisher("pattern", PatternMsg)
+        assert pub.wait_matching(10)
+        _publish_patterns(pub, first)
+        # past a flush: all of them in closed chunks on disk
+        _wait_for(lambda: _gens(out, parts=False) == first, 15, "the first batch on disk")
+        pid = sup.pids()["recorder"]
+        os.kill(pid, signal.SIGKILL)
+        _wait_for(lambda: sup.pids().get("recorder", pid) != pid, 15, "the supervisor to restart the recorder")
+        killed = out.read_bytes()
+        # the restarted recorder's token comes after the old one went away, once it has subscribed
+        _wait_for(lambda: ("recorder", True) in events[events.index(("recorder", False)) :], 30, "recorder back")
+        _publish_patterns(pub, second)
+        part1 = tmp_path / "session.1.mcap"
+        _wait_for(lambda: part1.exists() and _gens(part1, parts=False) == second, 15, "the second batch on disk")
+    # (the supervisor stopped the restarted recorder with SIGTERM: part 1 is finalized)
+
+    assert out.read_bytes() == killed  # never reopened for writing
+    assert not _has_summary(out) and _has_summary(part1)
+    assert sorted(p.name for p in tmp_path.glob("session*.mcap")) == ["session.1.mcap", "session.mcap"]
+    assert _gens(out, parts=False) == first  # every message sent before the last flush, exactly
+    assert _gens(part1, parts=False) == second
+    assert expand(out) == [out, part1]
+    assert _gens(out) == first + second  # the set, in order
+    assert "part 1 of the recording that starts at" in log.read_text()
+
+    fixed = tmp_path / "fixed.mcap"
+    r = subprocess.run([*CLI, "recover", str(out), str(fixed)], capture_output=True, text=True, timeout=30)
+    assert r.returncode == 0, r.stderr
+    assert _has_summary(fixed) and _gens(fixed) == first + second
+    r = subprocess.run([*CLI, "recover", str(out), str(fixed)], capture_output=True, text=True, timeout=30)
+    assert r.returncode == 1 and "never written over" in r.stderr
+
+    got, _ = _replay_collect([out], f"tcp/127.0.0.1:{free_port()}", len(first + second))
+    assert [decode(d).generation for d in got] == first + second
+
+
+GARBAGE_KINDS = {
+    "not msgpack": (b"\xc1\xc1 not a couture message", "unknown schema"),
+    "unknown schema": (msgspec.msgpack.encode({"schema": "couture/nope/v1", "version": 1}), "unknown schema"),
+    "unknown version": (None, "version 7 not accepted"),
+    "wrong type": (None, "expected couture/pattern/v1"),
+    "bad field": (None, "`$.generation`"),
+}
+
+
+def _garbage() -> dict[str, tuple[bytes, str]]:
+    pat = msgspec.msgpack.decode(encode(PatternMsg(generation=9)))
+    v7 = dict(pat, schema="couture/pattern/v7", version=7)
+    bad = dict(pat, generation="nine")
+    edit = encode(EditMsg(edit_id="e", d=np.zeros(2)))
+    made = {"unknown version": msgspec.msgpack.encode(v7), "wrong type": edit, "bad field": msgspec.msgpack.encode(bad)}
+    return {k: (made.get(k, data) or b"", why) for k, (data, why) in GARBAGE_KINDS.items()}
+
+
+def test_garbage_is_recorded_apart_counted_and_never_replayed(tmp_path):
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    s = f"g{uuid.uuid4().hex[:8]}"
+    out = tmp_path / "garbage.mcap"
+    out.write_bytes(b"someone's file")  # the recorder must not write over it
+    garbage = _garbage()
+    valid = [1, 2, 3, 4, 5]
+    statuses: list[StatusMsg] = []
+    with open_session(BusConfig(session=s, listen=[endpoint])) as bus:
+        bus.subscribe("status/recorder", statuses.append, StatusMsg)
+        rec = _start_recorder(out, s, endpoint, "--flush-interval", "0.2")
+        _wait_recorder(bus, rec)
+        pub = bus.publisher("pattern", PatternMsg)
+        assert pub.wait_matching(10)
+        _publish_patterns(pub, valid[:2])
+        for data, _ in garbage.values():
+            bus.zenoh.put(bus.key("pattern"), data)
+        _publish_patterns(pub, valid[2:])
+        _wait_for(
+            lambda: any(st.counters.get("rejected") == len(garbage) for st in statuses),
+            15,
+            f"the recorder's status to count {len(garbage)} rejected",
+        )
+        rec.send_signal(signal.SIGTERM)
+        _, err = rec.communicate(timeout=15)
+        assert rec.returncode == 0, err
+    assert out.read_bytes() == b"someone's file"
+    part = tmp_path / "garbage.1.mcap"
+    assert f"{out} exists (another recording; never written over): recording to {part}" in err
+    assert f"[record] finalized {part}:" in err and f"({len(garbage)} rejected, recorded apart)" in err
+    assert f"rejected a payload on couture/{s}/pattern" in err
+
+    # valid traffic reads as before; the garbage sits apart, byte for byte, each with its reason
+    assert _gens(part) == valid
+    rejected = list(read_session(str(part), which="rejected"))
+    assert sorted(r.data for r in rejected) == sorted(d for d, _ in garbage.values())
+    for kind, (data, why) in garbage.items():
+        (r,) = [r for r in rejected if r.data == data]
+        assert r.topic == "pattern" and why in r.rejected, (kind, r.rejected)
+    with open(part, "rb") as f:
+        channels = make_reader(f).get_summary().channels.values()
+    apart = [c for c in channels if c.topic == f"rejected/couture/{s}/pattern"]
+    assert len(apart) == 1 and apart[0].message_encoding == "application/octet-stream" and apart[0].schema_id == 0
+
+    # replay sends the valid patterns only; a recording from before the check
+    # (garbage among the valid traffic) is read after it and its garbage skipped
+    old = tmp_path / "old.mcap"
+    w = SessionWriter(str(old))
+    w.write("couture/x/pattern", encode(PatternMsg(generation=50)), 1)
+    w.write("couture/x/pattern", garbage["bad field"][0], 2)
+    w.close()
+    got, err = _replay_collect([part, old], endpoint, len(valid) + 1)
+    assert [decode(d).generation for d in got] == [*valid, 50]
+    assert "1 invalid payloads skipped (never sent)" in err
+
+
+def _part(base: Path, run: str, writes: list[tuple[str, bytes, bool]]) -> Path:
+    f, path, n = create_part(base)
+    w = SessionWriter(f)
+    w.add_metadata(INFO_NAME, {"run_id": run, "part": str(n), "session": "x"})
+    for i, (topic, data, good) in enumerate(writes):
+        if good:
+            w.write(f"couture/x/{topic}", data, i + 1)
+        else:
+            w.write_rejected(f"couture/x/{topic}", data, i + 1, "test garbage")
+    w.close()
+    return path
+
+
+def test_compare_reads_parts_and_leaves_rejected_out(tmp_path):
+    mesh = encode(mesh_to_msg(grid_sheet(0.3, 0.3, 4, 4), generation=1))
+    drape = encode(DrapeMsg(level="coarse", x=np.zeros((2, 3)), generation=1))
+    g = tmp_path / "golden.mcap"
+    _part(g, "A", [("mesh/fine", mesh, True)])
+    _part(g, "B", [("drape/coarse", drape, True)])  # another recording's part: not in A's set
+    _part(g, "A", [("drape/coarse", drape, True), ("drape/coarse", b"\x00junk", False)])
+    assert [p.name for p in expand(g)] == ["golden.mcap", "golden.2.mcap"]
+    a = tmp_path / "actual.mcap"
+    _part(a, "C", [("mesh/fine", mesh, True), ("drape/coarse", drape, True)])
+    rep = compare(str(g), str(a))
+    assert rep.ok, rep.text()
+    assert rep.rejected == {"golden": 1, "actual": 0} and "not compared): golden 1" in rep.text()
+    assert rep.golden == f"{g} (+ golden.2.mcap)"
+    rep = compare(str(a), str(tmp_path / "golden.1.mcap"))  # the other recording alone: no mesh
+    assert not rep.ok and rep.topics["mesh/fine"].missing == ["mesh/fine gen=1"] and rep.topics["drape/coarse"].ok

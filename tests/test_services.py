@@ -78,15 +78,18 @@ def test_matcher_two_designs_in_a_row_each_mesh_gets_its_own():
     assert b.matched is not None and b.matched.design is d2
 
 
-def test_matcher_newer_parked_mesh_replaces_older_and_lost_pattern_falls_back():
+def test_matcher_newer_parked_mesh_replaces_older_and_a_lost_pattern_gets_no_stand_in():
     m: MeshMatcher[str] = MeshMatcher()
-    m.add_design(1, d1 := design())
+    m.add_design(1, design())
     m.add_mesh(arrival("fine", 2, 5))
     assert m.add_mesh(arrival("fine", 3, 6)).status == "parked"  # replaces the parked 5
     assert m.add_mesh(arrival("fine", 2, 4)).status == "stale"  # older than the parked one
-    # pattern 3 lost; pattern 4 arrived: mesh 6's own design will not come, the newest older stands in
-    released = m.add_design(4, design(length=0.7))
-    assert [(r.mesh.mesh_generation, r.design is d1) for r in released] == [(6, True)]
+    # pattern 3 lost, pattern 4 arrived: mesh 6 is of design 3 and no other
+    # design's fabric stands in for it (that would drape it wrongly)
+    assert m.add_design(4, design(length=0.7)) == []
+    assert [p.mesh_generation for p in m.parked()] == [6]
+    (r,) = m.add_design(3, d3 := design(length=0.65))  # late, but it comes
+    assert r.design is d3 and m.newest == 3
 
 
 # -- the solver service's matching ----------------------------------------------
@@ -206,7 +209,10 @@ def test_sensitivity_pause_enriches_the_cache(equilibrium):
 
 def test_sensitivity_without_equilibrium_says_so():
     s = SensitivityService(clock=Clock())
-    s.press(Press(edit_id="e3", element="cv:front:hem:0"))
+    assert s.press(Press(edit_id="e3", element="cv:front:hem:0", generation=1)) is None  # no mesh held at all
+    s.offer_design(1, design())
+    s.take(s.offer_mesh(1, 1, sheet()).matched)
+    assert s.press(Press(edit_id="e3", element="cv:front:hem:0", generation=1)) is not None
     with pytest.raises(NoEquilibrium):
         s.psi("e3", np.zeros((5, 2, 2)))
 
@@ -252,6 +258,33 @@ def test_sensitivity_3d_tug_commits_through_apply_edit(equilibrium):
     assert r.design.sloper.params["length"] == base.max
 
 
+def test_sensitivity_rejects_edits_of_other_designs_and_a_tug_overtaken_by_a_new_design(equilibrium):
+    """A press made on another design than the mesh held opens no gesture
+    (counted stale / foreign); a 3D tug during which a newer design was
+    meshed publishes no design edited from the stale one."""
+    mesh, _ = equilibrium
+    counted: list[str] = []
+    s = ready_service(equilibrium)
+    s.count = counted.append
+    assert s.press(Press(edit_id="old", element="hem", generation=0)) is None
+    assert s.press(Press(edit_id="rogue", element="hem", generation=2**62)) is None
+    assert counted == ["stale_edits", "foreign_edits"] and s.gesture is None
+    vp, viewport = camera()
+    bottom = int(np.argmin(mesh.X[:, 1]))
+    psi = np.zeros((mesh.n_vertices, 2, 2))
+    psi[:, 1, 0] = -(SIZE - mesh.X[:, 1]) / SIZE
+    assert s.press(
+        Press(edit_id="t", generation=1, param="length", picked_vertex=bottom, view_proj=vp, viewport=viewport)
+    )
+    s.psi("t", psi)
+    # meanwhile another client's design is numbered 2 and its mesh matched
+    s.offer_design(7, design(length=0.7), "other")
+    assert s.offer_mesh(2, 2, sheet(generation=2), "other").status == "matched"
+    r = s.release("t", np.array([0.0, 40.0]))
+    assert r is not None and r.prediction is not None and r.design is None
+    assert counted[-1] == "stale_edits"
+
+
 def test_sensitivity_mesh_matching_follows_designs(equilibrium):
     """Two designs in a row: the second mesh gets the second fabric; a stale mesh is dropped."""
     mesh, _ = equilibrium
@@ -270,6 +303,7 @@ def test_sensitivity_mesh_matching_follows_designs(equilibrium):
 
 
 def test_remesher_numbers_designs_whatever_publishers_ask():
+    from couture.designs import MAX_AHEAD
     from couture.remesh.service import RemeshService
 
     small = msgspec_replace_resolution(design(), 120, 240)
@@ -277,15 +311,21 @@ def test_remesher_numbers_designs_whatever_publishers_ask():
     assert s.next_generation(1) == 1  # a fresh number is given as asked
     s.set_design(small, 1, "a")
     assert s.next_generation(1) == 2  # a second client (or a restarted one) asks for 1 again
-    assert s.next_generation(1000) == 1000  # a huge number only moves the count on ...
-    s.set_design(small, 1000, "hostile")
-    assert s.next_generation(3) == 1001  # ... later designs are not dropped, they are numbered above it
+    assert s.request_verdict(1, 2) == "stale"
+    assert s.next_generation(3) == 3  # a little ahead (a UI's superseded designs): granted
+    for hostile in (1000, 2**62, 2**64 - 1):  # far ahead: the next number instead, the count stays
+        assert s.next_generation(hostile) == 2 and s.request_verdict(hostile, 2) == "foreign"
+    assert s.next_generation(1 + MAX_AHEAD) == 1 + MAX_AHEAD and s.next_generation(2 + MAX_AHEAD) == 2
     # a restarted remesher numbers above what the session's meshes and drapes show
     fresh = RemeshService()
-    fresh.observe(1001, mesh_generation=8)
-    assert fresh.next_generation(1) == 1002
-    (up, *_) = fresh.set_design(small, 1002, "c")
-    assert up.mesh_generation == 9 and up.mesh.generation == 1002 and fresh.design_id == "c"
+    assert fresh.observe(7, mesh_generation=8)
+    assert not fresh.observe(2**62)  # never a number no remesher gives
+    assert fresh.next_generation(1) == 8
+    (up, *_) = fresh.set_design(small, 8, "c")
+    assert up.mesh_generation == 9 and up.mesh.generation == 8 and fresh.design_id == "c"
+    # once it numbers designs itself, a number above its own is foreign: the count stays
+    assert fresh.observe(8) and not fresh.observe(9) and not fresh.observe(1000)
+    assert fresh.next_generation(9) == 9
 
 
 def msgspec_replace_resolution(d: Design, coarse: int, fine: int) -> Design:

@@ -121,7 +121,9 @@ def test_drape_fails_clearly_when_nothing_answers(tmp_path):
             timeout=60,
         )
     assert r.returncode == 5  # couture.cli.DrapeExit.TIMEOUT
-    assert "no drape/fine for generation >= 1" in r.stderr
+    # the message names the design waited for by its identity: the remesher never numbered it
+    assert "no drape/fine for this client's design " in r.stderr
+    assert "(asked for generation 1, not numbered yet: no mesh of it arrived)" in r.stderr
     assert "remesher never answered (remesher is not live)" in r.stderr and "no solver-* node is live" in r.stderr
     assert not (tmp_path / "out" / "drape.obj").exists()
 

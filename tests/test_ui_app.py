@@ -245,7 +245,7 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
             drape_pub = peer.publisher("drape/fine", DrapeMsg)
             time.sleep(0.5)
             ui.show_pattern(pattern)
-            mesh_pub.put(mesh_to_msg(mesh))
+            mesh_pub.put(mesh_to_msg(mesh, generation=3))  # the remesher numbered it 3: drapes up to 3 show
             assert wait_for(lambda: "fine" in ui.meshes)
 
             def drape(solver, dz, gen):
@@ -271,8 +271,13 @@ def test_adapter_solver_choice_and_record_toggle(tmp_path):
             drape_pub.put(drape("solver-newton", 0.04, 2))
             assert wait_for(lambda: on_screen(0.04))
             drape_pub.put(drape("solver-kinetic", 0.05, 3))
+            # a drape numbered above every mesh (a rogue's) is held, and hides nothing
+            drape_pub.put(drape("solver-newton", 0.06, 2**62))
+            drape_pub.put(drape("solver-newton", 0.07, 3))
+            assert wait_for(lambda: on_screen(0.07)), "a foreign generation hid the chosen solver's next drape"
             time.sleep(1.0)
-            assert on_screen(0.04), "a drape of the solver not chosen replaced the chosen one"
+            assert on_screen(0.07), "a drape of the solver not chosen (or a foreign one) replaced the chosen one"
+            assert wait_for(lambda: adapter.node.bus.stats.snapshot().get("held_drapes", 0) >= 1)
 
             # a sensitivity node comes and goes (a real liveliness token on the peer's bus):
             # while it is gone the status says predictions are off

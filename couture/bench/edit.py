@@ -173,12 +173,12 @@ def run_pattern_changes(
             except TimeoutError as e:
                 rows.append({"change": k, "generation": gen, "length_m": length, "error": str(e)})
                 continue
-            with lock:
-                coarse = arrivals.get((gen, "coarse"))
-                t_fine = arrivals.get((gen, "fine"), (time.perf_counter(), fine))[0]
+            with lock:  # by the number the remesher gave the design (the drape's)
+                coarse = arrivals.get((fine.generation, "coarse"))
+                t_fine = arrivals.get((fine.generation, "fine"), (time.perf_counter(), fine))[0]
             row = {
                 "change": k,
-                "generation": gen,
+                "generation": fine.generation,
                 "length_m": length,
                 "coarse_s": None if coarse is None else coarse[0] - t_pub,
                 "coarse_residual": None if coarse is None else coarse[1].residual,

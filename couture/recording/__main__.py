@@ -1,5 +1,7 @@
 """``python -m couture.recording --out FILE [KEYEXPR ...]``: the recorder node
-(what ``couture up --record`` starts; ``couture record`` is the same)."""
+(what ``couture up --record`` starts; ``couture record`` is the same). An
+existing FILE is never written over: the recorder writes the next numbered
+part (couture.recording.parts)."""
 
 from __future__ import annotations
 
@@ -14,13 +16,23 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     p = parser or argparse.ArgumentParser(
         prog="python -m couture.recording", description="record couture messages to MCAP"
     )
-    p.add_argument("out", nargs="?", help="output .mcap file")
+    p.add_argument(
+        "out",
+        nargs="?",
+        help="output .mcap file; when it exists, the next numbered part <stem>.<n>.mcap (never written over)",
+    )
     p.add_argument("keyexprs", nargs="*", help="key expressions (default couture/<session>/**)")
     p.add_argument("--out", dest="out_flag", default=None, help="output .mcap file (alternative to the positional)")
     p.add_argument("--all-sessions", action="store_true", help="record couture/** instead of couture/<session>/**")
     p.add_argument("--flush-interval", type=float, default=0.5, help="close a chunk at least this often [s]")
     p.add_argument("--duration", type=float, default=0.0, help="stop after this long [s] (0: until Ctrl-C)")
     p.add_argument("--name", default="recorder", help="node name")
+    p.add_argument(
+        "--run-id",
+        default="",
+        help="continue this recording (its parts read back as one); default: a new one. "
+        "`couture up` passes the same id to every restart of its recorder",
+    )
     p.add_argument("--quiet", action="store_true", help="no throughput lines on stderr")
     add_bus_args(p)
     return p
@@ -39,6 +51,7 @@ def config_from_args(a: argparse.Namespace) -> RecordConfig:
         progress=not a.quiet,
         name=a.name,
         duration_s=a.duration,
+        run_id=a.run_id,
     )
 
 

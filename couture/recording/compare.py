@@ -9,6 +9,12 @@ when ``|actual - golden| <= atol + rtol * |golden|`` element-wise (NaN equals
 NaN); integers, strings and shapes must match exactly. Fields that measure
 time or ordering (``seq``, ``stamp_ns``, ``wall_time_s``) are not compared.
 
+Each side is a recording file read with its numbered parts (a recorder
+restarted mid-session, couture.recording.parts) or a list of files. Payloads
+the recorder set apart as rejected are not compared, only counted in the
+report; an invalid payload among the valid traffic (a recording made before
+the recorder checked) is a failure.
+
 With a :class:`PhysicsRule` (what ``couture golden`` uses) drapes are
 compared as physics, not as solver paths: two converged drapes agree within
 what their residuals allow, iterations and wall times are only reported
@@ -21,12 +27,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any, Callable
 
 import msgspec
 import numpy as np
 
 from couture.recording.mcapio import read_session
+from couture.recording.parts import PathLike, describe, resolve
 from schemas import topics as topic_table
 from schemas.arrays import FLOAT_DTYPES, Array
 from schemas.messages import DrapeMsg, Message, SchemaError, decode
@@ -137,6 +145,8 @@ class CompareReport:
     first_deviation: str = ""
     rule: str = ""
     """the drape rule in words, '' when drapes were compared field by field"""
+    rejected: dict[str, int] = field(default_factory=dict)
+    """'golden' / 'actual' -> payloads the recorder set apart (not compared)"""
 
     @property
     def ok(self) -> bool:
@@ -178,6 +188,11 @@ class CompareReport:
                 )
         if not self.topics:
             lines.append("(no output messages in the golden recording)")
+        if any(self.rejected.values()):
+            lines.append(
+                "rejected payloads recorded apart (not compared): "
+                + ", ".join(f"{side} {n}" for side, n in self.rejected.items())
+            )
         if self.first_deviation:
             lines.append(f"first deviation: {self.first_deviation}")
         lines.append("PASS" if self.ok else "FAIL")
@@ -193,12 +208,17 @@ def _match_key(topic: str, msg: Message) -> str:
     return " ".join(parts)
 
 
-def _outputs(path: str, topics: list[str]) -> tuple[dict[str, Message], dict[str, int], list[str]]:
-    """Last message per match key, the order keys first appeared (log time), bad payloads."""
+def _outputs(files: list[Path], topics: list[str]) -> tuple[dict[str, Message], dict[str, int], list[str], int]:
+    """Last message per match key, the order keys first appeared (log time),
+    bad payloads among the valid traffic, payloads recorded apart as rejected."""
     out: dict[str, Message] = {}
     order: dict[str, int] = {}
     bad: list[str] = []
-    for rec in read_session(path, topics):
+    rejected = 0
+    for rec in read_session(files, topics, which="all", parts=False):
+        if rec.rejected:
+            rejected += 1
+            continue
         try:
             msg = decode(rec.data)
         except SchemaError as e:
@@ -207,12 +227,12 @@ def _outputs(path: str, topics: list[str]) -> tuple[dict[str, Message], dict[str
         k = _match_key(rec.topic, msg)
         out[k] = msg
         order.setdefault(k, rec.log_time)
-    return out, order, bad
+    return out, order, bad, rejected
 
 
 def compare(
-    golden: str,
-    actual: str,
+    golden: PathLike | list[PathLike],
+    actual: PathLike | list[PathLike],
     *,
     rtol: float = 1e-5,
     atol: float = 1e-8,
@@ -224,15 +244,16 @@ def compare(
     are compared by :func:`compare_drape` and ``rtol``/``atol`` apply to the
     other fields and topics."""
     topics = topics or topic_table.compared_topics()
-    rep = CompareReport(golden=golden, actual=actual, rtol=rtol, atol=atol)
+    g_files, a_files = resolve(golden), resolve(actual)
+    rep = CompareReport(golden=describe(g_files), actual=describe(a_files), rtol=rtol, atol=atol)
     if rule is not None:
         caps = ", ".join(f"{lv} {c * 1e3:g} mm" for lv, c in rule.cap_m.items())
         rep.rule = (
             f"converged alike, residual <= tol on both sides, worst vertex <= {rule.floor_m * 1e3:g} mm + "
             f"{rule.safety:g} (r_golden + r_actual) ||F_g||/lambda_min, at most {caps}"
         )
-    g, g_order, g_bad = _outputs(golden, topics)
-    a, _, a_bad = _outputs(actual, topics)
+    g, g_order, g_bad, rep.rejected["golden"] = _outputs(g_files, topics)
+    a, _, a_bad, rep.rejected["actual"] = _outputs(a_files, topics)
     if g_bad:
         rep.first_deviation = f"golden holds an invalid message: {g_bad[0]}"
     firsts: list[tuple[int, str]] = []

@@ -163,10 +163,14 @@ def make(case: Case) -> Path:
     first, which replaces the golden only once the session is complete (a
     make that fails keeps the old golden)."""
     from couture.client import Client
+    from couture.recording.parts import expand, numbered
 
     designs = case_designs(case)
     out = case.mcap
     new = out.with_name(f".{out.stem}.new.mcap")
+    # a failed make's leftovers are this command's own scratch files, not recordings
+    for stale in [new, *numbered(new).values()]:
+        stale.unlink(missing_ok=True)
     with supervisor.Supervisor(supervisor.SupervisorConfig(bus=_session(), nodes=_nodes(case, new))) as sup:
         _wait_recorder(sup)
         with Client(bus=sup.child_bus) as client:
@@ -179,6 +183,12 @@ def make(case: Case) -> Path:
                     file=sys.stderr,
                 )
             time.sleep(0.5)  # let the recorder take the last messages
+    files = expand(new)
+    if len(files) > 1:  # messages sent while it was down are missing: not a golden
+        raise RuntimeError(
+            f"the recorder restarted during make ({', '.join(map(str, files))}); the golden "
+            f"{out} is unchanged, make it again"
+        )
     new.replace(out)
     return out
 

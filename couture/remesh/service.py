@@ -15,7 +15,8 @@ owns the coarse -> fine prolongation map.
 
 It numbers the designs of its session (:meth:`RemeshService.next_generation`):
 every design passes through the remesher, so its numbers are the generations
-that meshes and drapes carry, unique and increasing whatever publishers ask for.
+that meshes, drapes and edits carry, unique and increasing whatever publishers
+ask for (:mod:`couture.designs`).
 """
 
 from __future__ import annotations
@@ -24,9 +25,11 @@ import logging
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
+from couture.designs import GENERATION_LIMIT, MAX_AHEAD, Verdict, judge
 from couture.mesh import GarmentMesh
 from couture.pattern.drafted import DraftedPattern
 from couture.pattern.edit import edit_jacobian
@@ -81,9 +84,10 @@ class RemeshService:
     generation: int = -1
     """generation of the current design (-1 before the first)"""
     design_id: str = ""
-    """the current design's id, as its publisher named it"""
+    """the current design's identity (``PatternMsg.identity()``)"""
     seen_generation: int = 0
-    """highest generation seen on the bus (a restarted remesher numbers above it)"""
+    """highest generation seen on the bus before this remesher numbered its
+    first design (a restarted remesher numbers above its predecessor's)"""
     _mesh_gen: int = 0
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -93,21 +97,46 @@ class RemeshService:
 
     def next_generation(self, requested: int) -> int:
         """The generation a newly received design gets: the one its publisher
-        asks for when no design of the session has used it or a higher one,
-        else one more than the highest used (a client that starts late or
-        restarts, or two clients at once, cannot reuse a number, and a huge
-        number only moves the count on). Call :meth:`set_design` with it."""
+        asks for when it is above every number of the session and at most
+        :data:`~couture.designs.MAX_AHEAD` above, else one more than the
+        highest (a client that starts late or restarts, or two clients at
+        once, cannot reuse a number, and a huge one cannot move the count).
+        Call :meth:`set_design` with it; a design that fails validation
+        leaves its number unused."""
         with self._lock:
-            top = max(self.generation, self.seen_generation)
-        return requested if requested > top else top + 1
+            top = max(self.generation, self.seen_generation, 0)
+        if top < requested <= top + MAX_AHEAD and requested < GENERATION_LIMIT:
+            return requested
+        return top + 1
 
-    def observe(self, generation: int, mesh_generation: int = 0) -> None:
-        """Numbers seen on the bus (meshes and drapes of this session, possibly
-        from before a restart): later designs and meshes are numbered above
-        them, so downstream nodes never take a new mesh for a stale one."""
+    @staticmethod
+    def request_verdict(requested: int, given: int) -> Literal["granted", "stale", "foreign"]:
+        """What a publisher's request was, against the number given: granted,
+        stale (a number already used: the publisher is behind), or foreign (a
+        number too far ahead: another session's, or hostile)."""
+        if requested == given:
+            return "granted"
+        return "stale" if requested < given else "foreign"
+
+    def observe(self, generation: int, mesh_generation: int = 0) -> bool:
+        """Numbers seen on the bus (meshes and drapes of this session): before
+        this remesher has numbered a design they are its predecessor's (after
+        a restart), and later designs and meshes are numbered above them, so
+        downstream nodes never take a new mesh for a stale one. Once it
+        numbers designs itself a generation above its own is foreign (a rogue
+        publisher, another session's): not taken, returns False."""
         with self._lock:
-            self.seen_generation = max(self.seen_generation, generation)
-            self._mesh_gen = max(self._mesh_gen, mesh_generation)
+            if generation >= GENERATION_LIMIT or (self.generation >= 0 and generation > self.generation):
+                return False
+            if self.generation < 0:
+                self.seen_generation = max(self.seen_generation, generation)
+                self._mesh_gen = max(self._mesh_gen, mesh_generation)
+            return True
+
+    def judge_edit(self, generation: int) -> Verdict:
+        """Whether an edit made on the design of ``generation`` is on the current design."""
+        with self._lock:
+            return judge(generation, self.generation)
 
     def set_design(self, design: Design, generation: int, design_id: str = "") -> list[MeshUpdate]:
         """Draft, validate and mesh a design; raises PatternError naming the bad element."""

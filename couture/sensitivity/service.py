@@ -7,7 +7,10 @@ SC §7.2, one gesture at a time:
   (:meth:`SensitivityService.take`); a final solver drape on it becomes the
   predictor's equilibrium and the stiffness is refactored
   (:meth:`~SensitivityService.equilibrium`, idle time);
-- **press** (:meth:`~SensitivityService.press`) opens a gesture; the
+- **press** (:meth:`~SensitivityService.press`) opens a gesture, if it was
+  made on the design whose mesh is held (a press on an older design or on a
+  number not held here is rejected: logged with both generations, counted
+  ``stale_edits`` / ``foreign_edits``); the
   remesher's Ψ for it (:meth:`~SensitivityService.psi`) gives the two response
   columns. A 2D drag uses Ψ of the dragged element; a 3D tug of the drape uses
   Ψ of ``param:<name>`` (dX/dg) and the picked point's sensitivity s = ∂x/∂g;
@@ -19,7 +22,9 @@ SC §7.2, one gesture at a time:
   a sample to the GMLS cache (SC's progressive nonlinear model);
 - **release** (:meth:`~SensitivityService.release`): the final prediction (the
   solver's warm start); a 3D tug also yields its new design, committed through
-  :func:`couture.pattern.edit.apply_edit` like a 2D handle drag.
+  :func:`couture.pattern.edit.apply_edit` like a 2D handle drag, unless another
+  design was meshed during the gesture (then the tug edited a stale design: no
+  new design, counted ``stale_edits``).
 
 The adapter decides which thread runs what: callbacks call the cheap methods
 (``offer_*``, ``press``, ``moved``, ``pause``), worker threads the rest.
@@ -37,7 +42,7 @@ from typing import Callable
 import numpy as np
 
 from couture.cloth.model import ClothModel
-from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome
+from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome, judge
 from couture.mesh import GarmentMesh
 from couture.pattern.edit import apply_edit
 from couture.pattern.errors import PatternError
@@ -79,7 +84,7 @@ class Press:
     element: str = ""
     """element id of couture.pattern.edit for a 2D drag ('' for a 3D tug)"""
     generation: int = 0
-    """pattern generation the editing client saw (the edit message's)"""
+    """the remesher's number for the design the edit was made on (the edit message's)"""
     param: str = ""
     """3D tug: the sloper option it drives"""
     picked_vertex: int = -1
@@ -147,7 +152,7 @@ class ReleaseOut:
     design: Design | None = None
     """3D tug: the design with the driven option moved by Δg (None otherwise)"""
     generation: int = 0
-    """the generation to ask for when publishing ``design``"""
+    """the generation to ask for when publishing ``design`` (the remesher numbers it)"""
     design_id: str = ""
     """the new design's identity (unique)"""
 
@@ -195,9 +200,14 @@ class SensitivityService:
     def take(self, matched: Matched[GarmentMesh]) -> None:
         """Build the cloth model of a matched mesh (idle time: it costs a model
         build). Raises PatternError naming the field for a fabric outside its
-        physical range (the remesher rejects those first); nothing is changed."""
-        check_simulation_values(matched.design)
+        physical range (the remesher rejects those first); nothing is changed
+        (the matcher does not count the mesh as taken)."""
         m = matched.mesh
+        try:
+            check_simulation_values(matched.design)
+        except PatternError:
+            self.matcher.refuse(m)
+            raise
         model = ClothModel(m.payload, matched.design.fabric, scene_from_design(matched.design))
         with self._lock:
             self.mesh, self.mesh_generation, self.generation, self.model = (
@@ -230,9 +240,22 @@ class SensitivityService:
         return info
 
     # -- gesture ----------------------------------------------------------------
-    def press(self, press: Press) -> Gesture:
-        """Open a gesture (it waits for its Ψ); replaces any open one."""
+    def press(self, press: Press) -> Gesture | None:
+        """Open a gesture (it waits for its Ψ); replaces any open one. None,
+        logged and counted, when the press was made on another design than
+        the one whose mesh is held."""
         with self._lock:
+            verdict = judge(press.generation, self.generation)
+            if verdict != "current":
+                self.count(f"{verdict}_edits")
+                log.warning(
+                    "edit %s: press on generation %d, the mesh held is of generation %d (%s): rejected",
+                    press.edit_id,
+                    press.generation,
+                    self.generation,
+                    verdict,
+                )
+                return None
             g = Gesture(
                 press=press,
                 mesh_generation=self.mesh_generation,
@@ -388,11 +411,20 @@ class SensitivityService:
         out = self.drag(edit_id, d_raw, release=True)
         with self._lock:
             self.gesture = None
+            held = max(self.generation, self.matcher.newest)  # a mesh matched but not built yet counts
         if out is None or not g.press.is_tug or g.design is None:
             return ReleaseOut(out)
+        if held != g.generation:
+            self.count("stale_edits")
+            log.warning(
+                "3D tug %s edited generation %d, generation %d was meshed since: its design is not published",
+                edit_id,
+                g.generation,
+                held,
+            )
+            return ReleaseOut(out)
         new = apply_edit(g.design, f"param:{g.press.param}", g.d)
-        # the generation asked for; the remesher numbers the design
-        generation = max(self.matcher.designs.latest_generation, g.generation, g.press.generation) + 1
+        generation = g.generation + 1  # asked for; the remesher numbers the design
         log.info("3D tug: %s %+.4f (asks for generation %d)", g.press.param, float(g.d[0]), generation)
         return ReleaseOut(out, new, generation, uuid.uuid4().hex)
 

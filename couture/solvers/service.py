@@ -26,8 +26,9 @@ from typing import Callable
 import numpy as np
 
 from couture.cloth.model import ClothModel, Scene
-from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome
+from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome, Verdict, judge
 from couture.mesh import GarmentMesh
+from couture.pattern.errors import PatternError
 from couture.pattern.limits import check_simulation_values
 from couture.solvers import get_solver
 from couture.solvers.base import SolveResult
@@ -114,12 +115,28 @@ class SolveService:
         parked until its pattern arrives, or dropped as stale or a repeat."""
         return self.matcher.add_mesh(MeshArrival(level, generation, mesh_generation, incoming, design_id))
 
+    @property
+    def generation(self) -> int:
+        """The remesher's number for the newest design whose mesh this solver
+        matched (it solves that one next), -1 before any."""
+        return self.matcher.newest
+
+    def judge_edit(self, generation: int) -> Verdict:
+        """Whether an edit (or a prediction) made on the design of ``generation``
+        is on this solver's newest design."""
+        return judge(generation, self.matcher.newest)
+
     def take(self, matched: Matched[IncomingMesh]) -> bool:
         """Adopt a matched mesh and its design; True when both levels of one
         generation are held (a solve can run). Raises PatternError (nothing
-        adopted) for a design this solver cannot simulate."""
+        adopted; the matcher does not count the mesh as taken) for a design
+        this solver cannot simulate."""
         m = matched.mesh
-        self.set_design(matched.design)
+        try:
+            self.set_design(matched.design)
+        except PatternError:
+            self.matcher.refuse(m)
+            raise
         self.set_mesh(m.level, m.payload.mesh, m.mesh_generation, m.payload.prolongation)
         return self.ready()
 

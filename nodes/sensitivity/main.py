@@ -90,7 +90,7 @@ def main(config: Config) -> None:
 
         # -- inputs -----------------------------------------------------------
         def on_pattern(msg: PatternMsg) -> None:
-            for m in service.offer_design(msg.generation, msg.design, msg.design_id):
+            for m in service.offer_design(msg.generation, msg.design, msg.identity()):
                 take(m)
 
         def on_mesh(msg: MeshMsg) -> None:
@@ -120,7 +120,7 @@ def main(config: Config) -> None:
 
         def on_edit(msg: EditMsg) -> None:
             if msg.phase == "press":
-                service.press(
+                g = service.press(
                     Press(
                         edit_id=msg.edit_id,
                         element=msg.element,
@@ -131,7 +131,8 @@ def main(config: Config) -> None:
                         viewport=(tuple(msg.viewport_px) if len(msg.viewport_px) == 2 else (1, 1)),
                     )
                 )  # type: ignore[arg-type]
-                node.count("presses")
+                if g is not None:
+                    node.count("presses")
                 return
             if service.current(msg.edit_id) is None:
                 return

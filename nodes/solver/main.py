@@ -9,8 +9,13 @@ press aborts it too and no solve runs while a drag is in progress (the
 sensitivity node previews); after release the next meshes warm-start from
 the last prediction. Progress drapes go out every ``progress_period_s``.
 A mesh whose design has a fabric outside its physical range (the remesher
-rejects those first) is rejected on ``rejected`` and the solver keeps its
-state; a solve request with one is answered with the error.
+rejects those first) is rejected on ``rejected`` (with the design's identity
+and the generation the remesher gave it) and the solver keeps its state; a
+solve request with one is answered with the error.
+A press made on another design than the newest this solver holds, and a
+prediction numbered above it, are ignored with a log line naming both
+generations and counted (``stale_edits``, ``foreign_edits``,
+``foreign_predictions``).
 """
 
 from __future__ import annotations
@@ -80,7 +85,7 @@ def main(config: Config) -> None:
         rejected_pub = bus.publisher("rejected", RejectedMsg)
         worker = LatestWorker("solve", on_error=node.error)
         lock = threading.Lock()
-        state = {"generation": -1, "dragging": False, "abort": False}
+        state: dict = {"gesture": "", "dragging": False, "abort": False}
 
         def drape_msg(
             level: str,
@@ -152,7 +157,7 @@ def main(config: Config) -> None:
             except PatternError as e:
                 m = matched.mesh
                 node.count("bad_designs")
-                node.error(f"mesh/{m.level} of generation {m.generation} rejected: {e}")
+                node.error(f"mesh/{m.level} of generation {m.generation} (design {m.design_id or '?'}) rejected: {e}")
                 rejected_pub.put(
                     RejectedMsg(
                         node=config.name,
@@ -167,7 +172,7 @@ def main(config: Config) -> None:
                 worker.submit("solve", solve_job)
 
         def on_pattern(msg: PatternMsg) -> None:
-            for m in service.offer_design(msg.generation, msg.design, msg.design_id):
+            for m in service.offer_design(msg.generation, msg.design, msg.identity()):
                 worker.submit(f"mesh/{m.mesh.level}", lambda m=m: take(m))
 
         def on_mesh(msg: MeshMsg) -> None:
@@ -189,12 +194,35 @@ def main(config: Config) -> None:
 
         def on_edit(msg: EditMsg) -> None:
             if msg.phase == "press":
+                verdict = service.judge_edit(msg.generation)
+                if verdict != "current":
+                    node.count(f"{verdict}_edits")
+                    log.warning(
+                        "edit %s: press on generation %d, this solver's design is %d (%s): ignored",
+                        msg.edit_id,
+                        msg.generation,
+                        service.generation,
+                        verdict,
+                    )
+                    return
+                state["gesture"] = msg.edit_id
                 state["dragging"] = True
                 state["abort"] = True
-            elif msg.phase == "release":
+            elif msg.phase == "release" and msg.edit_id == state["gesture"]:
                 state["dragging"] = False
 
         def on_prediction(msg: DrapeMsg) -> None:
+            # a prediction lives on a mesh this solver matched (the release's is
+            # the warm start of the next design's mesh, numbered later)
+            if service.judge_edit(msg.generation) == "foreign":
+                node.count("foreign_predictions")
+                log.warning(
+                    "prediction for edit %s of generation %d ignored: this solver's newest design is %d",
+                    msg.edit_id,
+                    msg.generation,
+                    service.generation,
+                )
+                return
             service.set_prediction(msg.mesh_level, msg.mesh_generation, msg.x.numpy())
 
         def handle_solve(req: SolveRequestMsg) -> SolveResultMsg:

@@ -4,6 +4,15 @@ Messages in → ``CoutureUI.show_*``/``set_*`` (which only store the newest valu
 and return: Zenoh callback threads never wait on drawing); user actions →
 messages out (``pattern`` on every design change, ``edit`` on every drag phase).
 
+Design identity (:class:`couture.designs.ShownDesign`): the remesher numbers
+designs and its meshes echo each design's id with its number, so the UI
+learns the number of the design it shows and its edits carry it; another
+publisher's design is shown once the remesher has numbered it (a rejected one
+never is); a drape numbered above every mesh seen is held back until its mesh
+arrives (a foreign number can never hide later drapes), and another client's
+edit on a design not shown is not previewed. Each is logged and counted
+(``held_drapes``, ``stale_edits``, ``foreign_edits``, ``foreign_meshes``).
+
 Also here, because they need the bus: which solver's drapes are shown (the
 "solver" dropdown: drapes of other ``solver-*`` nodes are kept but not
 drawn), the status notes that say what the pipeline can do right now (no
@@ -27,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from couture.bus import BusConfig, Node
+from couture.designs import ShownDesign, judge
 from couture.ui import CoutureUI, UIConfig
 from couture.ui.gestures import Edit
 from schemas.arrays import Array
@@ -80,11 +90,17 @@ class UIAdapter:
         self.pattern_pub = bus.publisher("pattern", PatternMsg)
         self.edit_pub = bus.publisher("edit", EditMsg)
         self._own_edits: set[str] = set()
-        self._drape_gen: dict[str, int] = {}
+        self._drape_gen: dict[tuple[str, str], int] = {}
+        self.view = ShownDesign()
+        """which design is shown and the remesher's numbers (under ``_lock``)"""
+        self._early: dict[tuple[str, str], DrapeMsg] = {}
+        """(solver, level) -> newest drape numbered above every mesh seen, held until its mesh arrives"""
         self.seen_pattern = False
-        self._newest_mesh_ns = 0
-        """send time of the newest new mesh (a rejection older than it is history)"""
-        self._rejected_ns = 0
+        self._newest_mesh: tuple[int, str] = (0, "")
+        """(send time, design identity) of the newest new mesh: a rejection of
+        another design older than it is history (under ``_lock``)"""
+        self._rejected: tuple[int, str] | None = None
+        """(send time, design identity) of the rejection shown (under ``_lock``)"""
         ui.on_design_changed = self.publish_design
         ui.on_edit = self.publish_edit
         ui.on_solver_selected = self.select_solver
@@ -100,48 +116,110 @@ class UIAdapter:
 
     # -- out
     def publish_design(self, design: Design) -> None:
-        self.pattern_pub.put(
-            PatternMsg(design=design, source=self.name, generation=self.ui.generation, design_id=uuid.uuid4().hex)
-        )
+        design_id = uuid.uuid4().hex
+        with self._lock:
+            generation = self.view.request()
+            self.view.committed(design_id)
+        self.ui.generation = generation
+        self.pattern_pub.put(PatternMsg(design=design, source=self.name, generation=generation, design_id=design_id))
         self.node.count("pattern_out")
 
     def publish_edit(self, edit: Edit) -> None:
         self._own_edits.add(edit.edit_id)
         if len(self._own_edits) > 1000:
             self._own_edits.clear()
-        self.edit_pub.put(edit_msg(edit, self.ui.generation))
+        with self._lock:
+            generation = self.view.edit_generation()
+        self.edit_pub.put(edit_msg(edit, generation))
         self.node.count("edit_out")
 
     # -- in (Zenoh threads: store and return)
     def on_pattern(self, msg: PatternMsg) -> None:
         self.seen_pattern = True
-        if msg.source == self.name or msg.generation < self.ui.generation:
-            return  # our own echo, or an older design (history can arrive out of order)
-        self.ui.generation = msg.generation
-        self.ui.set_design(msg.design)
+        if msg.source == self.name:
+            return  # our own echo
+        with self._lock:
+            adopt = self.view.pattern(msg.identity(), msg.design)
+            shown = self.view.shown_generation
+        self._adopt(adopt, shown)
+
+    def _adopt(self, design: Design | None, generation: int | None) -> None:
+        """Show another publisher's design the remesher has numbered ``generation``."""
+        if design is None or generation is None:
+            return
+        log.info("showing another publisher's design, generation %d", generation)
+        self.ui.generation = generation
+        self.ui.set_design(design)
 
     def on_edit(self, msg: EditMsg) -> None:
         if msg.edit_id in self._own_edits or msg.picked_vertex >= 0:
             return  # our own, or a 3D tug (its d is in pixels: nothing to move in 2D)
+        with self._lock:
+            shown = self.view.shown_generation
+        verdict = "current" if shown is None else judge(msg.generation, shown)
+        if verdict != "current":
+            if msg.phase == "press":
+                self.node.count(f"{verdict}_edits")
+                log.info(
+                    "edit %s on generation %d not previewed: generation %d is shown (%s)",
+                    msg.edit_id,
+                    msg.generation,
+                    shown,
+                    verdict,
+                )
+            return
         self.ui.preview_remote_edit(msg.element, msg.d.numpy())
 
     def on_mesh(self, msg: MeshMsg) -> None:
-        if msg.unchanged:
-            return  # the mesh on screen, repeated to carry Ψ: keep the drape shown
-        self._newest_mesh_ns = max(self._newest_mesh_ns, msg.stamp_ns)
-        if self._rejected_ns and msg.stamp_ns > self._rejected_ns:
-            self._rejected_ns = 0
-            self.ui.set_rejection("")  # a later design was meshed
-        self.ui.show_mesh(msg_to_mesh(msg))
+        clear = False
+        with self._lock:
+            accepted, adopt = self.view.meshed(msg.design_id, msg.generation)
+            if not accepted:
+                self.node.count("foreign_meshes")
+                log.warning(
+                    "mesh/%s of generation %d ignored: not a number the remesher gives", msg.level, msg.generation
+                )
+                return
+            shown = self.view.shown_generation
+            if shown is not None and msg.design_id == self.view.shown_id:
+                self.ui.generation = shown
+            early = [m for m in self._early.values() if m.generation <= self.view.top]
+            for m in early:
+                del self._early[(m.solver, m.level)]
+            if not msg.unchanged:
+                self._newest_mesh = (msg.stamp_ns, msg.design_id)
+                rej = self._rejected
+                if rej is not None and msg.stamp_ns > rej[0] and not _same_design(msg.design_id, rej[1]):
+                    self._rejected, clear = None, True  # a later design was meshed
+        if clear:
+            self.ui.set_rejection("")
+        self._adopt(adopt, shown)
+        if not msg.unchanged:  # else: the mesh on screen, repeated to carry Ψ: keep the drape shown
+            self.ui.show_mesh(msg_to_mesh(msg))
+        for m in early:
+            self.on_drape(m)
 
     def on_drape(self, msg: DrapeMsg) -> None:
-        # drop a drape older than one already shown from that producer at that
-        # level (history can arrive out of order)
         key = (msg.solver, msg.level)
-        if msg.generation < self._drape_gen.get(key, -1):
-            return
-        self._drape_gen[key] = msg.generation
         with self._lock:
+            if msg.generation > self.view.top:
+                # no mesh of that number yet: its mesh is on the way, or the number is foreign
+                if key not in self._early:
+                    self.node.count("held_drapes")
+                    log.info(
+                        "drape/%s of generation %d from %r held: the newest mesh is of generation %d",
+                        msg.level,
+                        msg.generation,
+                        msg.solver,
+                        self.view.top,
+                    )
+                self._early[key] = msg
+                return
+            # drop a drape older than one already shown from that producer at
+            # that level (history can arrive out of order)
+            if msg.generation < self._drape_gen.get(key, -1):
+                return
+            self._drape_gen[key] = msg.generation
             self._last[key] = msg
         chosen = self.ui.selected_solver
         if msg.solver and chosen != "any" and msg.solver != chosen:
@@ -270,17 +348,34 @@ class UIAdapter:
         self.stop_recording()
 
     def on_rejected(self, msg: RejectedMsg) -> None:
-        """A design a node refused: shown at the top of the status until a later design is meshed."""
-        if msg.stamp_ns < max(self._newest_mesh_ns, self._rejected_ns):
-            return  # history from before the mesh (or the rejection) on screen
-        self._rejected_ns = msg.stamp_ns
-        who = f"design {msg.name!r}" if msg.name else f"generation {msg.generation}"
+        """A design a node refused: shown at the top of the status until a
+        later mesh of another design arrives. A solver's rejection of the
+        design on screen (the remesher meshed it) is shown even when its
+        other level's mesh came later."""
+        with self._lock:
+            mesh_ns, mesh_id = self._newest_mesh
+            if (msg.stamp_ns < mesh_ns and not _same_design(msg.design_id, mesh_id)) or (
+                self._rejected is not None and msg.stamp_ns < self._rejected[0]
+            ):
+                return  # history from before the mesh (or the rejection) on screen
+            self._rejected = (msg.stamp_ns, msg.design_id)
+        if msg.name:
+            who = f"design {msg.name!r}"
+        elif msg.design_id:
+            who = f"design {msg.design_id} (generation {msg.generation})"
+        else:
+            who = f"generation {msg.generation}"
         src = f" from {msg.source}" if msg.source else ""
         self.ui.set_rejection(f"{msg.node} rejected {who}{src}: {msg.reason}")
         self.node.count("rejected_in")
 
     def on_status(self, msg: StatusMsg) -> None:
         self.ui.set_node_status(msg.node, kind=msg.kind, state=msg.state, rates=msg.rates, last_error=msg.last_error)
+
+
+def _same_design(a: str, b: str) -> bool:
+    """Both identities known and equal ('' is no identity: never the same)."""
+    return bool(a) and a == b
 
 
 def edit_msg(edit: Edit, generation: int) -> EditMsg:
@@ -314,7 +409,6 @@ def main(config: Config) -> None:
             # sample for late joiners) wins over the default design
             node.stop_flag.wait(1.0)
             if config.publish_initial and not adapter.seen_pattern:
-                ui.generation = max(ui.generation, 1)  # generations start at 1 (as Client.publish_pattern's)
                 adapter.publish_design(ui.design)
             try:
                 node.run()
