@@ -299,9 +299,15 @@ def compare_case(case: Case, golden: Path | str, actual: Path | str, labels: set
     )
 
 
-def scaled_inputs(golden: Path | str, out: Path | str, fabric_scale: dict[str, float]) -> Path:
+def scaled_inputs(
+    golden: Path | str,
+    out: Path | str,
+    fabric_scale: dict[str, float] | None = None,
+    scene_scale: dict[str, float] | None = None,
+) -> Path:
     """A copy of the golden's replayed inputs with every pattern's fabric
-    fields multiplied (``{"bend_stiffness": 1.5}``): a deliberate physics change
+    fields (``{"bend_stiffness": 1.5}``) and scene factors
+    (``{"seam_stiffness_scale": 0.1}``) multiplied: a deliberate physics change
     made where a designer would make it, in the design, so that a test can
     show the comparison catches it."""
     from couture.recording.mcapio import SessionWriter, read_session
@@ -314,9 +320,13 @@ def scaled_inputs(golden: Path | str, out: Path | str, fabric_scale: dict[str, f
             data = rec.data
             if rec.topic == "pattern":
                 msg = decode(data, PatternMsg)
-                changes = {k: getattr(msg.design.fabric, k) * f for k, f in fabric_scale.items()}
+                d = msg.design
+                fabric = {k: getattr(d.fabric, k) * f for k, f in (fabric_scale or {}).items()}
+                scene = {k: getattr(d.scene, k) * f for k, f in (scene_scale or {}).items()}
                 design = msgspec.structs.replace(
-                    msg.design, fabric=msgspec.structs.replace(msg.design.fabric, **changes)
+                    d,
+                    fabric=msgspec.structs.replace(d.fabric, **fabric),
+                    scene=msgspec.structs.replace(d.scene, **scene),
                 )
                 data = encode(msgspec.structs.replace(msg, design=design))
             w.write(rec.key, data, rec.log_time, schema=rec.schema or None)
@@ -325,16 +335,23 @@ def scaled_inputs(golden: Path | str, out: Path | str, fabric_scale: dict[str, f
     return Path(out)
 
 
-def check(case: Case, actual: Path | None = None, fabric_scale: dict[str, float] | None = None) -> CompareReport:
+def check(
+    case: Case,
+    actual: Path | None = None,
+    fabric_scale: dict[str, float] | None = None,
+    scene_scale: dict[str, float] | None = None,
+) -> CompareReport:
     """Replay the golden inputs into fresh nodes and compare their outputs
-    with the golden ones; ``fabric_scale`` replays a physically different
-    session instead (:func:`scaled_inputs`), which must fail."""
+    with the golden ones; ``fabric_scale`` or ``scene_scale`` replays a
+    physically different session instead (:func:`scaled_inputs`), which must fail."""
     if not case.mcap.exists():
         raise FileNotFoundError(f"{case.mcap}: no golden recording; make it with `couture golden make {case.name}`")
     with tempfile.TemporaryDirectory(prefix="couture-golden-") as tmp:
         if actual is None:
             actual = Path(tmp) / f"{case.name}.mcap"
-        inputs = scaled_inputs(case.mcap, Path(tmp) / "inputs.mcap", fabric_scale) if fabric_scale else case.mcap
+        inputs = case.mcap
+        if fabric_scale or scene_scale:
+            inputs = scaled_inputs(case.mcap, Path(tmp) / "inputs.mcap", fabric_scale, scene_scale)
         _run(case, inputs, actual)
         return compare_case(case, case.mcap, actual)
 
