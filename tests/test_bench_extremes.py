@@ -40,14 +40,17 @@ def _checks(**ok):
 
 def test_outcome_rules():
     good = _checks(residual=True, friction_cone=True, penetration=True, seams=None)
-    kw = dict(diagnosis="", finite=True, max_move_m=0.1)
+    kw = dict(diagnosis="", finite=True, max_edge_stretch=1.1)
     assert ex.classify(converged=True, checks=good, **kw) == "converged"
     bad_seams = _checks(residual=True, friction_cone=None, penetration=True, seams=False)
     assert ex.classify(converged=True, checks=bad_seams, **kw) == "failed_checks"
     assert ex.classify(converged=False, checks=good, **dict(kw, diagnosis="stalled: ...")) == "diagnosed"
     assert ex.classify(converged=False, checks=good, **kw) == "undiagnosed"
     assert ex.classify(converged=False, checks=None, **dict(kw, finite=False, diagnosis="x")) == "blew_up"
-    assert ex.classify(converged=True, checks=good, **dict(kw, max_move_m=1e3)) == "blew_up"
+    assert ex.classify(converged=True, checks=good, **dict(kw, max_edge_stretch=50.0)) == "blew_up"
+    assert (
+        ex.classify(converged=False, checks=None, **dict(kw, max_edge_stretch=float("inf"), diagnosis="x")) == "blew_up"
+    )
     assert ex.classify(converged=False, checks=None, error="ValueError", **kw) == "blew_up"
     assert ex.stop_kind("max_seconds 30 reached after 4 steps") == "max_seconds"
     assert ex.stop_kind("stalled: residual best 0.1") == "stalled"
@@ -72,6 +75,8 @@ def test_independent_checks_see_an_open_seam_and_a_vertex_inside_the_body():
     c = ex.checks(model, x, 1e-6, "newton")
     assert c["penetration"]["ok"] is False and c["penetration"]["deepest_m"] == pytest.approx(0.11)
     assert c["residual"]["ok"] is False
+    assert ex.max_edge_stretch(model, r.x) < 1.5  # whole
+    assert ex.max_edge_stretch(model, 20 * r.x) > ex.BLOWUP_STRETCH  # torn apart
 
 
 def test_skirt_seam_check_measures_the_gap():
