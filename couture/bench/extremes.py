@@ -154,8 +154,8 @@ def case_list(
                 for end in ("min", "max"):
                     variants.append({"kind": "edit", "knob": o.name, "end": end, "value": getattr(o, end)})
         for solver in solvers:
-            for v in variants:
-                spec = {"scene": scene, "solver": solver, "limit_s": limits[scene], "tol": tol, **v}
+            for variant in variants:
+                spec = {"scene": scene, "solver": solver, "limit_s": limits[scene], "tol": tol, **variant}
                 spec["label"] = case_label(spec)
                 specs.append(spec)
     return specs
@@ -785,6 +785,9 @@ def print_table(rows: list[dict[str, Any]], summ: dict[str, Any]) -> None:
     )
 
 
+CHECK_NAMES = {"residual": "residual", "friction_cone": "friction", "penetration": "in body", "seams": "seam gap"}
+"""short names of the checks, for the heat map's cells"""
+
 COLOURS = {
     "converged": "#4caf50",
     "failed_checks": "#ffb300",
@@ -826,7 +829,9 @@ def plot(rows: list[dict[str, Any]], path: Path, title: str = "") -> None:
             if r["outcome"] in ("converged", "failed_checks") or (res is not None and not text):
                 text = f"{res:.0e}" if res is not None else ""
             if r["outcome"] == "failed_checks":
-                text = "x " + ",".join(c[:4] for c in r.get("failed_checks", []))
+                text = "x " + ",".join(CHECK_NAMES.get(c, c) for c in r.get("failed_checks", []))
+            if r.get("left_body"):
+                text = "left body"
             ax.text(
                 j,
                 i,
@@ -848,16 +853,37 @@ def plot(rows: list[dict[str, Any]], path: Path, title: str = "") -> None:
     fig.legend(
         handles=[Patch(color=c, label=o.replace("_", " ")) for o, c in COLOURS.items()],
         loc="lower center",
+        bbox_to_anchor=(0.5, 0.02),
         ncol=min(len(COLOURS), 3 * len(scenes)),
         fontsize=7,
         frameon=False,
     )
+    fig.text(
+        0.5,
+        0.005,
+        "cell: relative residual reached (verlet: the cloth-model residual at its own spring model's drape, "
+        "not checked), the stop, or the failed check",
+        ha="center",
+        va="bottom",
+        fontsize=7,
+    )
     if title:
         fig.suptitle(title, fontsize=9)
-    fig.tight_layout(rect=(0, 0.05, 1, 0.96))
+    fig.tight_layout(rect=(0, 0.06, 1, 0.96))
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_report(report: dict[str, Any], path: Path) -> None:
+    """The heat map of a report (what ``main`` writes; also from a saved extremes.json)."""
+    c = report["summary"]["by_solver"]
+    plot(
+        report["cases"],
+        path,
+        title=f"couture bench extremes (tol {report['settings']['tol']:g})\n"
+        + "; ".join(f"{s} {v['converged']}/{v['cases']} converged" for s, v in c.items()),
+    )
 
 
 # -- command line ---------------------------------------------------------------------------------
@@ -869,9 +895,21 @@ def _grid(s: str) -> tuple[int, int]:
 
 
 def _commit() -> str | None:
-    from couture.bench.drape import _commit as commit
-
-    return commit()
+    """The source tree's git commit ('+dirty' with local changes), None outside a checkout."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head + ("+dirty" if dirty else "")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -954,13 +992,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     out = write_results(a.out, "extremes", report, default=_json_default)
     png = Path(a.out) / "extremes.png"
-    c = summ["by_solver"]
-    plot(
-        rows,
-        png,
-        title=f"couture bench extremes (tol {a.tol:g})\n"
-        + "; ".join(f"{s} {v['converged']}/{v['cases']} converged" for s, v in c.items()),
-    )
+    plot_report(report, png)
     print(f"wrote {out} and {png} in {total:.0f} s")
     return 0
 
