@@ -9,11 +9,15 @@ coordinates), so they survive sloper parameter changes.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
 import msgspec
 
 DESIGN_SCHEMA = "couture/design/v1"
+
+StiffnessScale = Annotated[float, msgspec.Meta(gt=0.0, le=1e6)]
+"""a dimensionless factor on a default stiffness: positive and finite (a
+decoded message or file outside (0, 1e6] is rejected naming the field)"""
 
 
 class Fabric(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
@@ -66,12 +70,19 @@ class Body(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 
 
 class SceneFlags(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
-    """Which terms the scene needs (absent terms are never built)."""
+    """Which terms the scene needs (absent terms are never built), and the
+    factors on the default seam and contact stiffnesses."""
 
     body: bool = True
     gravity: bool = True
     seams: bool = True
     friction: bool = True
+    seam_stiffness_scale: StiffnessScale = 1.0
+    """dimensionless factor on the default seam spring stiffness
+    (``couture.cloth.model.SEAM_STIFFNESS_PER_MU`` x the fabric's shear modulus mu)"""
+    contact_stiffness_scale: StiffnessScale = 1.0
+    """dimensionless factor on the default body contact stiffness
+    (``couture.cloth.model.CONTACT_STIFFNESS_PER_MU`` x mu)"""
 
 
 class Resolution(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):

@@ -195,3 +195,59 @@ def test_a_physics_change_fails_naming_the_worst_vertex(tmp_path):
     assert "mm > bound" in fine.failures[0]
     worst = max(fine.drapes, key=lambda r: r.deviation_m)
     assert worst.deviation_m > 2 * worst.bound_m, report.text()
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_a_seam_stiffness_change_fails_naming_the_worst_vertex(tmp_path):
+    """Seam stiffness x0.1 in every design (``SceneFlags.seam_stiffness_scale``)
+    moves the drapes by microns, far inside the position bound (the seams are
+    5000x stiffer than the cloth), but every seam gap grows tenfold: the seam
+    rule fails on every drape of both levels and names the seam emitter."""
+    name = CASES[0]
+    case = load_case(name)
+    report = check(case, actual=tmp_path / f"{name}.mcap", scene_scale={"seam_stiffness_scale": 0.1})
+    assert not report.ok
+    for topic in ("drape/coarse", "drape/fine"):
+        fails = [f for f in report.topics[topic].failures if "seam gap" in f]
+        assert len(fails) >= len(case.designs), report.text()
+        assert f"{topic} generation" in fails[0] and "worst vertex" in fails[0] and "um > bound" in fails[0], fails
+
+
+def test_seam_rule_sees_a_seam_opened_by_microns_that_positions_cannot(tmp_path):
+    """A copy of the golden with one seam emitter of its first fine drape moved
+    by 20 um: far inside the position bound (mm), but the seam gap rule fails
+    and names that vertex."""
+    import msgspec
+
+    from couture.recording.golden import SEAM_FLOOR_M, compare_case, seam_failures
+    from couture.recording.mcapio import SessionWriter, read_session
+    from schemas.messages import MeshMsg, decode, encode
+
+    case = load_case(CASES[0])
+    out = tmp_path / "doctored.mcap"
+    w = SessionWriter(str(out))
+    emitter, moved = -1, False
+    try:
+        for rec in read_session(str(case.mcap)):
+            data = rec.data
+            if rec.topic == "mesh/fine" and emitter < 0:
+                emitter = int(decode(data, MeshMsg).seam_emitters.numpy()[0])
+            if rec.topic == "drape/fine" and not moved:
+                msg = decode(data, DrapeMsg)
+                if msg.final and emitter >= 0:
+                    x = msg.x.numpy().astype(np.float64)
+                    x[emitter, 0] += 20e-6
+                    data = encode(msgspec.structs.replace(msg, x=Array.from_numpy(x, "float32")))
+                    moved = True
+            w.write(rec.key, data, rec.log_time, schema=rec.schema or None)
+    finally:
+        w.close()
+    assert moved
+    fails = seam_failures(case, case.mcap, out)
+    assert list(fails) == ["drape/fine"] and len(fails["drape/fine"]) == 1, fails
+    assert f"worst vertex {emitter} " in fails["drape/fine"][0], fails
+    report = compare_case(case, case.mcap, out)
+    assert all(r.ok for r in report.topics["drape/fine"].drapes), "positions alone pass"
+    assert not report.ok and any("seam gap" in f for f in report.topics["drape/fine"].failures)
+    assert 20e-6 > 5 * SEAM_FLOOR_M

@@ -232,6 +232,14 @@ def test_unknown_schema_and_version_say_what_is_accepted():
     assert "schema" in _err({"x": 1})
 
 
+@pytest.mark.parametrize("bad", [0.0, -0.5, float("nan"), float("inf")])
+def test_scene_stiffness_factor_must_be_positive_and_finite(bad):
+    d = _raw(PatternMsg(design=Design()))
+    d["design"]["scene"]["contact_stiffness_scale"] = bad
+    msg = _err(d)
+    assert "couture/pattern/v1" in msg and "$.design.scene.contact_stiffness_scale" in msg
+
+
 def test_nan_in_positions_rejected_with_index():
     x = np.zeros((3, 3))
     x[2, 1] = np.nan

@@ -119,6 +119,37 @@ def test_solver_service_takes_meshes_only_with_their_design():
     assert s.offer_mesh("fine", 1, 1, IncomingMesh(fine)).status == "stale"
 
 
+def test_scene_stiffness_factors_scale_the_models_defaults_in_solver_and_sensitivity():
+    """``SceneFlags.seam_stiffness_scale`` / ``contact_stiffness_scale`` multiply
+    the model's default seam and contact stiffnesses, in every model a node
+    builds from a design (solver and sensitivity alike); a change rebuilds them."""
+    import msgspec
+
+    from couture.solvers.service import scene_from_design
+
+    base = design()
+    scaled = msgspec.structs.replace(
+        base, scene=msgspec.structs.replace(base.scene, seam_stiffness_scale=0.1, contact_stiffness_scale=10.0)
+    )
+    s = SolveService(method="newton")
+    s.set_design(base)
+    s.set_mesh("fine", sheet(), 1)
+    m0 = s.levels["fine"].model
+    assert s.set_design(scaled), "a new factor is a new scene: the models are rebuilt"
+    m1 = s.levels["fine"].model
+    assert m1 is not m0
+    assert m1.seam_stiffness == pytest.approx(0.1 * m0.seam_stiffness)
+    assert m1.contact_stiffness == pytest.approx(10.0 * m0.contact_stiffness)
+    sens = SensitivityService()
+    sens.offer_design(1, scaled)
+    sens.take(sens.offer_mesh(1, 1, sheet()).matched)
+    assert sens.model is not None and sens.model.seam_stiffness == pytest.approx(m1.seam_stiffness)
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        flags = msgspec.structs.replace(base.scene, seam_stiffness_scale=bad)
+        with pytest.raises(ValueError, match="scene.seam_stiffness_scale"):
+            scene_from_design(msgspec.structs.replace(base, scene=flags))
+
+
 # -- the sensitivity service ------------------------------------------------------
 
 

@@ -22,8 +22,10 @@ status, a converged one a residual within the solver node's tolerance, and
 every vertex within ``floor_m + safety * (r_golden + r_actual) * ||F_g|| /
 lambda_min`` of the golden, at most the level's ``cap_m`` (lambda_min: the
 smallest eigenvalue of the exact free Hessian at the golden drape,
-:func:`compliances`). Iterations and wall
-times are reported, never compared. Meshes (what the remesher drafts) are
+:func:`compliances`), and every seam spring's gap within ``SEAM_FLOOR_M +
+safety * (r_golden + r_actual) * ||F_g|| / k_seam`` of the golden's
+(:func:`seam_failures`: stiff seams hide from the position bound). Iterations
+and wall times are reported, never compared. Meshes (what the remesher drafts) are
 compared field by field within ``rtol``/``atol``, integers exactly; their
 ``x0`` carries the previous drape over, so only the cap holds there.
 
@@ -35,6 +37,7 @@ couture.recording.golden`` is the same command as ``couture golden``.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import sys
@@ -43,6 +46,7 @@ import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import msgspec
 
@@ -219,23 +223,11 @@ def solver_tolerances() -> dict[str, float]:
     return dict(SolveService(method="newton").tol)
 
 
-def compliances(path: Path | str) -> dict[str, float]:
-    """Match key of each final drape in a recording -> ||F_g|| / lambda_min [m]:
-    the cloth model built as the solver node builds it (the recorded mesh and
-    the design of its pattern message), its exact free Hessian at the drape
-    (not the PSD-projected one the solvers factor: projection stiffens the
-    compressed membrane, and the bound needs the true soft modes), the smallest
-    eigenvalue by shift-invert Lanczos. A drape converged to relative residual
-    r is within about r times this of the equilibrium; a non-positive
-    lambda_min gives inf (the cap decides)."""
-    import numpy as np
-    import scipy.sparse.linalg as spla
-
-    from couture.cloth.model import ClothModel
+def _final_drapes(path: Path | str) -> dict[str, tuple[Any, Any, Design | None]]:
+    """Match key of each final drape in a recording -> (DrapeMsg, the MeshMsg it
+    was solved on or None, the design of that mesh's pattern or None)."""
     from couture.recording.compare import _match_key
     from couture.recording.mcapio import read_session
-    from couture.solvers.service import scene_from_design
-    from schemas.convert import msg_to_mesh
     from schemas.messages import DrapeMsg, MeshMsg, PatternMsg, decode
 
     designs: dict[str, Design] = {}
@@ -253,10 +245,31 @@ def compliances(path: Path | str) -> dict[str, float]:
             d = decode(rec.data, DrapeMsg)
             if d.final:
                 drapes[_match_key(rec.topic, d)] = d
-    out: dict[str, float] = {}
+    out: dict[str, tuple[Any, Any, Design | None]] = {}
     for key, d in drapes.items():
         m = meshes.get((d.level, d.mesh_generation))
-        design = designs.get(m.design_id) if m is not None else None
+        out[key] = (d, m, designs.get(m.design_id) if m is not None else None)
+    return out
+
+
+def compliances(path: Path | str) -> dict[str, float]:
+    """Match key of each final drape in a recording -> ||F_g|| / lambda_min [m]:
+    the cloth model built as the solver node builds it (the recorded mesh and
+    the design of its pattern message), its exact free Hessian at the drape
+    (not the PSD-projected one the solvers factor: projection stiffens the
+    compressed membrane, and the bound needs the true soft modes), the smallest
+    eigenvalue by shift-invert Lanczos. A drape converged to relative residual
+    r is within about r times this of the equilibrium; a non-positive
+    lambda_min gives inf (the cap decides)."""
+    import numpy as np
+    import scipy.sparse.linalg as spla
+
+    from couture.cloth.model import ClothModel
+    from couture.solvers.service import scene_from_design
+    from schemas.convert import msg_to_mesh
+
+    out: dict[str, float] = {}
+    for key, (d, m, design) in _final_drapes(path).items():
         if m is None or design is None:
             out[key] = float("inf")
             continue
@@ -270,6 +283,65 @@ def compliances(path: Path | str) -> dict[str, float]:
             log.warning("%s: no lambda_min (%s); the cap decides", key, e)
             lmin = 0.0
         out[key] = model.residual_denominator(x) / lmin if lmin > 0 else float("inf")
+    return out
+
+
+SEAM_FLOOR_M = 1e-6
+"""[m] seam gaps may always differ this much: drapes travel as float32, which
+rounds positions near 1 m by up to 6e-8 m, and a gap combines three of them"""
+
+
+def seam_failures(case: Case, golden: Path | str, actual: Path | str) -> dict[str, list[str]]:
+    """Drape topic -> the final drapes whose seams opened or closed more than
+    their residuals allow. Per seam spring the gap vector g = x_e - ((1 - w) x_a
+    + w x_b) (emitter e, its point on the edge (a, b)); a spring's force k g
+    changes between two drapes by at most the force their residuals leave
+    unbalanced, so |g_actual - g_golden| <= SEAM_FLOOR_M + safety (r_golden +
+    r_actual) ||F_g|| / k_seam (k_seam and ||F_g|| from the golden's design).
+    The position rule cannot see this: seams are stiff (k_seam = 5000 mu), so
+    a tenth of the seam stiffness moves a drape by microns, far inside the
+    soft modes' compliance, while every seam gap grows tenfold."""
+    import numpy as np
+
+    from couture.cloth.model import ClothModel
+    from couture.solvers.service import scene_from_design
+    from schemas.convert import msg_to_mesh
+
+    def gaps(d: Any, m: Any) -> np.ndarray:
+        x = d.x.numpy().astype(np.float64)
+        e, ab, w = m.seam_emitters.numpy(), m.seam_edges.numpy(), m.seam_weights.numpy()
+        return x[e] - (1.0 - w)[:, None] * x[ab[:, 0]] - w[:, None] * x[ab[:, 1]]
+
+    g_all, a_all = _final_drapes(golden), _final_drapes(actual)
+    out: dict[str, list[str]] = {}
+    for key, (gd, gm, design) in g_all.items():
+        if key not in a_all or gm is None or design is None:
+            continue  # missing drapes and meshes are the comparison's to report
+        ad, am, _ = a_all[key]
+        if am is None or len(gm.seam_emitters.numpy()) == 0:
+            continue
+        if not (
+            np.array_equal(gm.seam_emitters.numpy(), am.seam_emitters.numpy())
+            and np.array_equal(gm.seam_edges.numpy(), am.seam_edges.numpy())
+        ):
+            continue  # another seam topology: the mesh comparison says so
+        scene = dataclasses.replace(scene_from_design(design), body=None, friction=False)
+        model = ClothModel(msg_to_mesh(gm), design.fabric, scene)
+        x = gd.x.numpy().astype(np.float64)
+        bound = SEAM_FLOOR_M + case.safety * (gd.residual + ad.residual) * model.residual_denominator(x) / float(
+            model.seam_stiffness
+        )
+        dev = np.linalg.norm(gaps(ad, am) - gaps(gd, gm), axis=1)
+        worst = int(np.argmax(dev))
+        if not dev[worst] <= bound:
+            topic = key.split(" ", 1)[0]
+            vertex = int(gm.seam_emitters.numpy()[worst])
+            out.setdefault(topic, []).append(
+                f"{key}: {topic} generation {gd.generation}: seam gap at worst vertex {vertex} changed "
+                f"{dev[worst] * 1e6:.3f} um > bound {bound * 1e6:.3f} um "
+                f"({int(np.sum(dev > bound))} of {len(dev)} seam springs off; golden gap "
+                f"{np.linalg.norm(gaps(gd, gm)[worst]) * 1e6:.3f} um)"
+            )
     return out
 
 
@@ -294,14 +366,27 @@ def compare_case(case: Case, golden: Path | str, actual: Path | str, labels: set
     """Compare two recordings of the case under its physics rule. A replay
     re-sends the golden's patterns, so their design ids come back; two makes
     publish fresh ones (``labels={"design_id"}`` leaves them out)."""
-    return compare(
+    rep = compare(
         str(golden), str(actual), rtol=case.rtol, atol=case.atol, topics=TOPICS, rule=rule(case, golden, labels)
     )
+    rep.rule += f"; seam gaps within {SEAM_FLOOR_M * 1e6:g} um + {case.safety:g} (r_golden + r_actual) ||F_g||/k_seam"
+    for topic, fails in seam_failures(case, golden, actual).items():
+        tr = rep.topics.get(topic)
+        if tr is not None:
+            tr.failures.extend(fails)
+            rep.first_deviation = rep.first_deviation or fails[0]
+    return rep
 
 
-def scaled_inputs(golden: Path | str, out: Path | str, fabric_scale: dict[str, float]) -> Path:
+def scaled_inputs(
+    golden: Path | str,
+    out: Path | str,
+    fabric_scale: dict[str, float] | None = None,
+    scene_scale: dict[str, float] | None = None,
+) -> Path:
     """A copy of the golden's replayed inputs with every pattern's fabric
-    fields multiplied (``{"bend_stiffness": 1.5}``): a deliberate physics change
+    fields (``{"bend_stiffness": 1.5}``) and scene factors
+    (``{"seam_stiffness_scale": 0.1}``) multiplied: a deliberate physics change
     made where a designer would make it, in the design, so that a test can
     show the comparison catches it."""
     from couture.recording.mcapio import SessionWriter, read_session
@@ -314,9 +399,13 @@ def scaled_inputs(golden: Path | str, out: Path | str, fabric_scale: dict[str, f
             data = rec.data
             if rec.topic == "pattern":
                 msg = decode(data, PatternMsg)
-                changes = {k: getattr(msg.design.fabric, k) * f for k, f in fabric_scale.items()}
+                d = msg.design
+                fabric = {k: getattr(d.fabric, k) * f for k, f in (fabric_scale or {}).items()}
+                scene = {k: getattr(d.scene, k) * f for k, f in (scene_scale or {}).items()}
                 design = msgspec.structs.replace(
-                    msg.design, fabric=msgspec.structs.replace(msg.design.fabric, **changes)
+                    d,
+                    fabric=msgspec.structs.replace(d.fabric, **fabric),
+                    scene=msgspec.structs.replace(d.scene, **scene),
                 )
                 data = encode(msgspec.structs.replace(msg, design=design))
             w.write(rec.key, data, rec.log_time, schema=rec.schema or None)
@@ -325,16 +414,23 @@ def scaled_inputs(golden: Path | str, out: Path | str, fabric_scale: dict[str, f
     return Path(out)
 
 
-def check(case: Case, actual: Path | None = None, fabric_scale: dict[str, float] | None = None) -> CompareReport:
+def check(
+    case: Case,
+    actual: Path | None = None,
+    fabric_scale: dict[str, float] | None = None,
+    scene_scale: dict[str, float] | None = None,
+) -> CompareReport:
     """Replay the golden inputs into fresh nodes and compare their outputs
-    with the golden ones; ``fabric_scale`` replays a physically different
-    session instead (:func:`scaled_inputs`), which must fail."""
+    with the golden ones; ``fabric_scale`` or ``scene_scale`` replays a
+    physically different session instead (:func:`scaled_inputs`), which must fail."""
     if not case.mcap.exists():
         raise FileNotFoundError(f"{case.mcap}: no golden recording; make it with `couture golden make {case.name}`")
     with tempfile.TemporaryDirectory(prefix="couture-golden-") as tmp:
         if actual is None:
             actual = Path(tmp) / f"{case.name}.mcap"
-        inputs = scaled_inputs(case.mcap, Path(tmp) / "inputs.mcap", fabric_scale) if fabric_scale else case.mcap
+        inputs = case.mcap
+        if fabric_scale or scene_scale:
+            inputs = scaled_inputs(case.mcap, Path(tmp) / "inputs.mcap", fabric_scale, scene_scale)
         _run(case, inputs, actual)
         return compare_case(case, case.mcap, actual)
 

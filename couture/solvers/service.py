@@ -19,13 +19,14 @@ Warm start, in order of preference, for a level's new mesh:
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
-from couture.cloth.model import ClothModel, Scene
+from couture.cloth.model import CONTACT_STIFFNESS_PER_MU, SEAM_STIFFNESS_PER_MU, ClothModel, Scene, lame_parameters
 from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome, Verdict, judge
 from couture.mesh import GarmentMesh
 from couture.pattern.errors import PatternError
@@ -39,10 +40,31 @@ log = logging.getLogger(__name__)
 
 
 def scene_from_design(design: Design) -> Scene:
-    """The terms a design's scene needs (absent terms are never built)."""
+    """The terms a design's scene needs (absent terms are never built), with
+    its seam and contact stiffnesses: the model's defaults (``*_PER_MU`` x the
+    fabric's shear modulus mu) times the scene's factors. Raises ValueError
+    for a factor that is not positive and finite (a decoded design cannot
+    hold one: ``schemas.design.StiffnessScale``)."""
     flags = design.scene
+    for name in ("seam_stiffness_scale", "contact_stiffness_scale"):
+        v = getattr(flags, name)
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"scene.{name}: {v!r} is not a positive finite factor")
     body = "mannequin" if flags.body else None
-    return Scene(body=body, gravity=flags.gravity, seams=flags.seams, friction=bool(flags.friction and flags.body))
+    mu, _ = lame_parameters(design.fabric.stretch_stiffness, design.fabric.poisson_ratio)
+    # a factor of 1 leaves the model's own default in charge (None)
+    seam = None if flags.seam_stiffness_scale == 1.0 else flags.seam_stiffness_scale * SEAM_STIFFNESS_PER_MU * mu
+    contact = (
+        None if flags.contact_stiffness_scale == 1.0 else flags.contact_stiffness_scale * CONTACT_STIFFNESS_PER_MU * mu
+    )
+    return Scene(
+        body=body,
+        gravity=flags.gravity,
+        seams=flags.seams,
+        friction=bool(flags.friction and flags.body),
+        seam_stiffness=seam,
+        contact_stiffness=contact,
+    )
 
 
 def same_vertices(a: GarmentMesh, b: GarmentMesh) -> bool:
