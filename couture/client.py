@@ -184,6 +184,7 @@ class Client:
             self.status[msg.node] = msg
             for q in self._followers:
                 q.put(msg)
+            self._cond.notify_all()
 
     def _on_rejected(self, msg: RejectedMsg) -> None:
         with self._cond:
@@ -212,6 +213,55 @@ class Client:
                 f"nodes {missing} not live on session {self.cfg.session} after {timeout:g} s "
                 f"(live: {self.live_nodes() or 'none'})"
             )
+
+    def wait_predictions_ready(
+        self, timeout: float = 30.0, *, generation: int | None = None, node: str = "sensitivity"
+    ) -> StatusMsg:
+        """Wait until the sensitivity node's status says predictions are ready (it
+        holds the refactored equilibrium of its fine mesh), for ``generation``
+        (one this client asked for, or the remesher's number) when given, and
+        return that status. A press sent before is not lost (the node holds it
+        for a few seconds); this is for scripts that want the answer at once.
+        Raises :class:`PatternRejected` when a node rejected that design (one
+        this client published), TimeoutError naming the last status."""
+        deadline = time.monotonic() + timeout
+
+        def ok() -> StatusMsg | None:
+            st = self.status.get(node)
+            if st is None or not st.ready:
+                return None
+            if generation is None:
+                return st
+            target, exact = self._target(generation)
+            if target is None:
+                return None  # the remesher has not numbered our design yet
+            return st if (st.ready_generation == target if exact else st.ready_generation >= target) else None
+
+        with self._cond:
+            while (st := ok()) is None:
+                if (
+                    generation is not None
+                    and self._own.is_own(generation)
+                    and (rej := self._rejection_locked(generation))
+                ):
+                    raise rej  # our design was rejected: it will never be ready
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                self._cond.wait(left)
+            if st is not None:
+                return st
+            last = self.status.get(node)
+        said = (
+            "none"
+            if last is None
+            else f"ready={last.ready}, generation {last.ready_generation}, mesh generation {last.ready_mesh_generation}"
+        )
+        raise TimeoutError(
+            f"predictions of node {node!r} not ready"
+            + ("" if generation is None else f" for generation {generation}")
+            + f" after {timeout:g} s (its last status: {said})"
+        )
 
     def publish_pattern(
         self, design: Design | str | os.PathLike, *, name: str = "", wait_subscribers_s: float = 5.0

@@ -300,6 +300,15 @@ class StatusMsg(Message, kw_only=True):
     """totals since start, by name (e.g. 'bad_messages', 'callback_errors')"""
     last_error: str = ""
     """last error text, '' if none"""
+    ready: bool = True
+    """the node serves requests at once (the sensitivity node: it holds the
+    refactored equilibrium of the fine mesh held, so a press is predicted
+    without waiting; a press before that is held until it is)"""
+    ready_generation: int = -1
+    """the design (the remesher's number) the node is ready for, -1 when not
+    ready or not applicable"""
+    ready_mesh_generation: int = -1
+    """the fine mesh the node is ready for, -1 when not ready or not applicable"""
 
 
 class RejectedMsg(Message, kw_only=True):

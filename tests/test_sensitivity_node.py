@@ -142,3 +142,48 @@ def test_press_drag_release_predicts_on_the_clients_design():
             "the mesh of the tugged design",
         )
         assert new.design_id and not new.unchanged
+
+
+def test_a_press_at_once_after_the_drape_is_held_until_the_equilibrium():
+    """A script presses the moment the final fine drape arrives, while the node
+    still refactors at it: the press is held, not dropped, and predicted once
+    the equilibrium is there; the status then says predictions are ready for
+    that design, and the client can wait on it."""
+    session = f"s{uuid.uuid4().hex[:8]}"
+    nodes = supervisor.default_nodes(solvers=["newton"], ui=False)
+    cfg = supervisor.SupervisorConfig(
+        bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]),
+        nodes=[n for n in nodes if n.name != "recorder"],
+    )
+    with supervisor.Supervisor(cfg) as sup, Client(bus=sup.child_bus) as client:
+        client.wait_nodes(["remesher", "solver-newton", "sensitivity"], timeout=60)
+        gen = client.publish_pattern(SMALL, name="small")
+        fine = client.wait_drape("fine", generation=gen, timeout=200, final=True)
+        edit = client.send_edit("param:length", [0.0, 0.0], phase="press", param="length", dofs=["length"])
+        for k in range(1, 4):  # drags while the press may still be held
+            client.send_edit(
+                "param:length", [0.01 * k, 0.0], phase="drag", edit_id=edit.edit_id, param="length", dofs=["length"]
+            )
+        mine = wait_for(
+            lambda: [d for d in client.drapes("predicted") if d.edit_id == edit.edit_id],
+            30,
+            "a prediction for the press sent right after the drape",
+        )
+        p = mine[-1]
+        assert p.generation == fine.generation and p.mesh_generation == fine.mesh_generation
+        assert p.x.shape == fine.x.shape and np.all(np.isfinite(p.x.numpy()))
+        st = client.wait_predictions_ready(timeout=30, generation=gen)
+        assert st.ready and st.ready_generation == fine.generation
+        assert st.ready_mesh_generation == fine.mesh_generation
+        client.send_edit(
+            "param:length", [0.03, 0.0], phase="release", edit_id=edit.edit_id, param="length", dofs=["length"]
+        )
+        wait_for(
+            lambda: any(d.edit_id == edit.edit_id and d.diagnosis == "release" for d in client.drapes("predicted")),
+            30,
+            "the release prediction",
+        )
+        st = client.status["sensitivity"]
+        assert st.counters.get("gestures_expired", 0) == 0 and not st.last_error, st
+        with pytest.raises(TimeoutError, match="not ready for generation"):
+            client.wait_predictions_ready(timeout=0.5, generation=gen + 5)

@@ -13,7 +13,14 @@ from couture.designs import MeshArrival, MeshMatcher
 from couture.mesh import GarmentMesh, grid_sheet
 from couture.pattern import SLOPERS
 from couture.sensitivity.drag3d import project_jacobian
-from couture.sensitivity.service import NoEquilibrium, Press, SensitivityConfig, SensitivityService
+from couture.sensitivity.service import (
+    NoEquilibrium,
+    PredictionOut,
+    Press,
+    ReleaseOut,
+    SensitivityConfig,
+    SensitivityService,
+)
 from couture.solvers import get_solver
 from couture.solvers.service import IncomingMesh, SolveService
 from schemas.design import Design, Fabric, SceneFlags, Sloper
@@ -245,7 +252,62 @@ def test_sensitivity_without_equilibrium_says_so():
     s.take(s.offer_mesh(1, 1, sheet()).matched)
     assert s.press(Press(edit_id="e3", element="cv:front:hem:0", generation=1)) is not None
     with pytest.raises(NoEquilibrium):
-        s.psi("e3", np.zeros((5, 2, 2)))
+        s.psi("e3", np.zeros((5, 2, 2)))  # Ψ of another mesh
+
+
+def test_sensitivity_holds_a_press_until_its_equilibrium(equilibrium):
+    """A press, its drags and its release that come before the drape's
+    refactorization wait for it (only the latest drag kept); once the
+    equilibrium is there the held gesture is predicted and released. One
+    held past hold_s is given up and counted."""
+    mesh, x_eq = equilibrium
+    clock, counted = Clock(), []
+    s = SensitivityService(SensitivityConfig(hold_s=2.0), clock=clock, count=counted.append)
+    s.offer_design(1, design())
+    s.take(s.offer_mesh(1, 1, mesh).matched)
+    assert not s.readiness().ready
+    g = s.press(Press(edit_id="h1", element="cv:front:hem:0", generation=1))
+    assert g is not None and counted == ["gestures_held"]
+    assert s.psi("h1", stretch_psi(mesh.X)) is g and not g.ready  # held, not an error
+    assert s.drag("h1", np.array([0.0, -0.01])) is None
+    d = np.array([0.0, -0.02])
+    assert s.drag("h1", d) is None  # the latest drag is the one kept
+    assert s.resume() is None  # still no equilibrium
+    clock.t += 1.0
+    assert s.expire() is None  # within hold_s
+    assert s.equilibrium(1, x_eq) is not None  # the gesture has no columns yet: the drape is taken
+    r = s.readiness()
+    assert r.ready and r.generation == 1 and r.mesh_generation == 1
+    out = s.resume()
+    assert isinstance(out, PredictionOut) and out.edit_id == "h1" and g.ready
+    np.testing.assert_array_equal(out.d, d)
+    dy = out.x[:, 1] - x_eq[:, 1]
+    assert dy[mesh.pinned].max() == 0.0 and dy.min() < -0.005  # pulled down, as the held drag asked
+    assert s.resume() is None  # nothing more waits
+    # the designer's release came while held: it ends the gesture once served
+    s2 = SensitivityService(SensitivityConfig(hold_s=2.0), clock=clock)
+    s2.offer_design(1, design())
+    s2.take(s2.offer_mesh(1, 1, mesh).matched)
+    s2.press(Press(edit_id="h2", element="cv:front:hem:0", generation=1))
+    s2.psi("h2", stretch_psi(mesh.X))
+    assert s2.release("h2", d) is None and s2.gesture is not None  # waits
+    s2.equilibrium(1, x_eq)
+    rel = s2.resume()
+    assert isinstance(rel, ReleaseOut) and rel.prediction is not None and rel.prediction.release
+    np.testing.assert_array_equal(rel.prediction.d, d)
+    assert s2.gesture is None
+    # no equilibrium within hold_s: given up, counted, and a later drape is taken
+    g3 = s.press(Press(edit_id="h3", element="cv:front:hem:0", generation=1))
+    assert g3 is not None and g3.held_since is None  # ready: not held
+    s.offer_design(2, design(stretch=30.0))
+    s.take(s.offer_mesh(2, 2, sheet(generation=2)).matched)  # a newer design is meshed
+    assert not s.readiness().ready
+    g4 = s.press(Press(edit_id="h4", element="cv:front:hem:0", generation=2))
+    assert g4 is not None and counted.count("gestures_held") == 2
+    s.release("h4", d)
+    clock.t += 2.5
+    assert s.expire() is g4 and s.gesture is None and counted[-1] == "gestures_expired"
+    assert s.resume() is None and s.expire() is None
 
 
 def camera() -> tuple[np.ndarray, tuple[int, int]]:

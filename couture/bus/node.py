@@ -15,7 +15,7 @@ import os
 import signal
 import threading
 import time
-from typing import Callable
+from typing import Callable, Protocol
 
 from couture.bus.session import Bus, BusConfig, open_session
 from schemas.messages import StatusMsg
@@ -66,6 +66,17 @@ class StopFlag:
         self.event.set()
 
 
+class Readiness(Protocol):
+    """What a node's status reports as ready (see :class:`StatusMsg`)."""
+
+    @property
+    def ready(self) -> bool: ...
+    @property
+    def generation(self) -> int: ...
+    @property
+    def mesh_generation(self) -> int: ...
+
+
 class Node:
     """A bus participant with presence and status. Context manager."""
 
@@ -90,6 +101,9 @@ class Node:
         self._t0 = time.monotonic()
         self._bus: Bus | None = None
         self._status_thread: threading.Thread | None = None
+        self.readiness: Callable[[], Readiness] | None = None
+        """what the status reports as ready: returns an object with ``ready``,
+        ``generation`` and ``mesh_generation`` (None: always ready)"""
 
     @property
     def bus(self) -> Bus:
@@ -165,6 +179,7 @@ class Node:
 
     def status(self) -> StatusMsg:
         st = self.bus.stats
+        r = self.readiness() if self.readiness is not None else None
         return StatusMsg(
             node=self.name,
             kind=self.kind,
@@ -174,6 +189,9 @@ class Node:
             rates=st.take_rates(),
             counters=st.snapshot(),
             last_error=st.last_error,
+            ready=True if r is None else bool(r.ready),
+            ready_generation=-1 if r is None else int(r.generation),
+            ready_mesh_generation=-1 if r is None else int(r.mesh_generation),
         )
 
     def publish_status(self) -> None:

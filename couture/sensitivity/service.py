@@ -20,6 +20,15 @@ SC §7.2, one gesture at a time:
 - **pause** (:meth:`~SensitivityService.pause`): the pointer rests, so a short
   solve at the current design point (:meth:`~SensitivityService.enrich`) adds
   a sample to the GMLS cache (SC's progressive nonlinear model);
+- **held**: a press that arrives before the equilibrium on its mesh (the
+  final drape came, its refactorization is under way) is held, not dropped:
+  its Ψ, its latest drag and its release wait (counted ``gestures_held``), and
+  :meth:`~SensitivityService.resume` serves them once the equilibrium is
+  there; one held past ``hold_s`` is given up, logged and counted
+  ``gestures_expired`` (:meth:`~SensitivityService.expire`). Drags and a
+  release that come before the gesture's Ψ wait the same way.
+  :meth:`~SensitivityService.readiness` says whether a press would be served
+  at once (the node publishes it in its status);
 - **release** (:meth:`~SensitivityService.release`): the final prediction (the
   solver's warm start); a 3D tug also yields its new design, committed through
   :func:`couture.pattern.edit.apply_edit` like a 2D handle drag, unless another
@@ -59,7 +68,19 @@ log = logging.getLogger(__name__)
 
 
 class NoEquilibrium(RuntimeError):
-    """A press arrived before any equilibrium on the gesture's mesh: no prediction."""
+    """Ψ does not fit the mesh the gesture was pressed on: no prediction."""
+
+
+@dataclass(frozen=True)
+class Readiness:
+    """Whether a press is served at once: the predictor holds the refactored
+    equilibrium of the fine mesh held."""
+
+    ready: bool
+    generation: int = -1
+    """the design (the remesher's number) of that equilibrium's mesh, -1 when not ready"""
+    mesh_generation: int = -1
+    """that fine mesh's number, -1 when not ready"""
 
 
 @dataclass
@@ -74,6 +95,9 @@ class SensitivityConfig:
     """relative residual the idle solve aims for"""
     enrich_solver: str = "newton"
     """solver of the idle solves (couture.solvers.get_solver)"""
+    hold_s: float = 5.0
+    """[s] a gesture held for want of its equilibrium (or its release for want
+    of Ψ) waits at most this long, then it is expired"""
 
 
 @dataclass
@@ -120,6 +144,15 @@ class Gesture:
     """latest design point (2,): the pointer motion [m], or (Δg, 0) for a tug"""
     enriched_at: np.ndarray | None = None
     """design point of the latest idle solve (None: none yet)"""
+    psi: np.ndarray | None = None
+    """Ψ (n, 2, 2) once it arrived (kept until the equilibrium is there)"""
+    held_since: float | None = None
+    """[s] clock time the gesture began to wait (for its equilibrium, or its
+    release for Ψ); None: it never waited"""
+    pending_d: np.ndarray | None = None
+    """the latest drag (raw, as received) that came before the columns"""
+    pending_release: np.ndarray | None = None
+    """the release (raw) that came before the columns"""
 
     @property
     def edit_id(self) -> str:
@@ -184,7 +217,13 @@ class SensitivityService:
         self.design: Design | None = None
         """the design the held mesh was drafted from"""
         self.gesture: Gesture | None = None
+        self.eq_mesh_generation = -1
+        """the fine mesh of the predictor's equilibrium (-1: none)"""
+        self.eq_generation = -1
+        """that mesh's design (the remesher's number)"""
         self._lock = threading.RLock()
+        self._predict_lock = threading.Lock()
+        """held while the equilibrium is replaced or the columns are computed"""
 
     # -- designs and meshes ---------------------------------------------------
     def offer_design(self, generation: int, design: Design, design_id: str = "") -> list[Matched[GarmentMesh]]:
@@ -222,22 +261,34 @@ class SensitivityService:
     def equilibrium(self, mesh_generation: int, x: np.ndarray) -> FactorInfo | None:
         """A final solver drape x (n, 3) [m] on the fine mesh: the predictor's new
         equilibrium, refactored now (idle time). None when x is not on the mesh
-        held, or a gesture is under way (it keeps the equilibrium it started from)."""
-        with self._lock:
-            model = self.model
-            if (
-                model is None
-                or mesh_generation != self.mesh_generation
-                or x.shape != (model.n, 3)
-                or self.gesture is not None
-            ):
-                return None
-        self.predictor.set_equilibrium(model, np.asarray(x, dtype=np.float64))
-        info = self.predictor.refactor()
+        held, or a gesture has its columns (it keeps the equilibrium it started
+        from). A gesture held for want of it is served by :meth:`resume`."""
+        with self._predict_lock:
+            with self._lock:
+                model, generation, g = self.model, self.generation, self.gesture
+                if (
+                    model is None
+                    or mesh_generation != self.mesh_generation
+                    or x.shape != (model.n, 3)
+                    or (g is not None and g.ready)
+                ):
+                    return None
+                self.eq_mesh_generation = -1
+            self.predictor.set_equilibrium(model, np.asarray(x, dtype=np.float64))
+            info = self.predictor.refactor()
+            with self._lock:
+                self.eq_mesh_generation, self.eq_generation = mesh_generation, generation
         log.info(
             "refactored at mesh generation %d in %.0f ms (%s)", mesh_generation, 1e3 * info.refactor_s, info.backend
         )
         return info
+
+    def readiness(self) -> Readiness:
+        """Whether a press on the mesh held is served at once (cheap; any thread)."""
+        with self._lock:
+            if self.model is None or self.eq_mesh_generation != self.mesh_generation:
+                return Readiness(False)
+            return Readiness(True, self.eq_generation, self.eq_mesh_generation)
 
     # -- gesture ----------------------------------------------------------------
     def press(self, press: Press) -> Gesture | None:
@@ -264,7 +315,16 @@ class SensitivityService:
                 last_motion=self.clock(),
             )
             self.gesture = g
+            if self.eq_mesh_generation != self.mesh_generation:
+                self._hold(g, "its equilibrium (the drape's refactorization)")
         return g
+
+    def _hold(self, g: Gesture, what: str) -> None:
+        if g.held_since is not None:
+            return
+        g.held_since = self.clock()
+        self.count("gestures_held")
+        log.info("edit %s: held until %s is there (at most %g s)", g.edit_id, what, self.config.hold_s)
 
     def current(self, edit_id: str) -> Gesture | None:
         """The open gesture if it is ``edit_id``'s."""
@@ -272,25 +332,85 @@ class SensitivityService:
         return g if g is not None and g.edit_id == edit_id else None
 
     def psi(self, edit_id: str, psi: np.ndarray) -> Gesture | None:
-        """Ψ (n, 2, 2) for a gesture: compute its response columns (worker thread).
-        None when the gesture is no longer open; raises NoEquilibrium when no
-        equilibrium on a mesh of Ψ's size is held."""
+        """Ψ (n, 2, 2) for a gesture: compute its response columns (worker thread)
+        once the equilibrium on its mesh is held; until then Ψ waits on the
+        gesture (see :meth:`resume`). None when the gesture is no longer open;
+        raises NoEquilibrium when Ψ does not fit the gesture's mesh."""
         g = self.current(edit_id)
         if g is None:
             return None
-        p = self.predictor
-        if p.model is None or p.model.n != psi.shape[0]:
-            raise NoEquilibrium(f"edit {edit_id}: no equilibrium on this mesh yet; no prediction")
-        t0 = time.perf_counter()
-        S = p.press(psi)
-        if g.press.picked_vertex >= 0:
-            g.s_point = S[g.press.picked_vertex, :, 0]
-        g.ready = True
+        with self._lock:
+            model = self.model if self.mesh_generation == g.mesh_generation else None
+        if model is not None and model.n != psi.shape[0]:
+            raise NoEquilibrium(
+                f"edit {edit_id}: Ψ has {psi.shape[0]} vertices, the mesh pressed on "
+                f"(mesh generation {g.mesh_generation}) has {model.n}; no prediction"
+            )
+        g.psi = psi
+        self._columns(g)
+        return g
+
+    def _columns(self, g: Gesture) -> bool:
+        """Compute g's columns if its Ψ and the equilibrium on its mesh are here."""
+        with self._predict_lock:
+            if g.ready:
+                return True
+            if g.psi is None or self.eq_mesh_generation != g.mesh_generation or self.gesture is not g:
+                return False
+            p = self.predictor
+            if p.model is None or p.model.n != g.psi.shape[0]:
+                raise NoEquilibrium(f"edit {g.edit_id}: no equilibrium on this mesh yet; no prediction")
+            t0 = time.perf_counter()
+            S = p.press(g.psi)
+            if g.press.picked_vertex >= 0:
+                g.s_point = S[g.press.picked_vertex, :, 0]
+            g.ready = True
         log.info(
-            "press %s on %s: columns in %.0f ms",
-            edit_id,
+            "press %s on %s: columns in %.0f ms%s",
+            g.edit_id,
             g.press.element or g.press.param,
             1e3 * (time.perf_counter() - t0),
+            "" if g.held_since is None else f" (held {self.clock() - g.held_since:.2f} s)",
+        )
+        return True
+
+    def resume(self) -> PredictionOut | ReleaseOut | None:
+        """Serve what waited on the open gesture (worker thread; call it after an
+        equilibrium or Ψ arrived): its columns, then its release (a ReleaseOut)
+        or else the prediction of its latest drag. None when nothing is due."""
+        g = self.gesture
+        if g is None or not self._columns(g):
+            return None
+        if g.pending_release is not None:
+            return self.release(g.edit_id, g.pending_release)
+        if g.pending_d is not None:
+            d, g.pending_d = g.pending_d, None
+            return self.drag(g.edit_id, d)
+        return None
+
+    def expire(self) -> Gesture | None:
+        """The open gesture, closed, if it waited more than ``hold_s`` (logged,
+        counted ``gestures_expired``); None otherwise. Cheap: it does not wait
+        while columns are being computed."""
+        g = self.gesture
+        if g is None or g.ready or g.held_since is None or self.clock() - g.held_since <= self.config.hold_s:
+            return None
+        if not self._predict_lock.acquire(blocking=False):
+            return None
+        try:
+            with self._lock:
+                if self.gesture is not g or g.ready:
+                    return None
+                self.gesture = None
+        finally:
+            self._predict_lock.release()
+        self.count("gestures_expired")
+        log.warning(
+            "edit %s: held %.1f s without %s; given up (no prediction%s)",
+            g.edit_id,
+            self.clock() - g.held_since,
+            "Ψ" if self.eq_mesh_generation == g.mesh_generation else f"an equilibrium on mesh {g.mesh_generation}",
+            ", its release is lost" if g.pending_release is not None else "",
         )
         return g
 
@@ -320,9 +440,13 @@ class SensitivityService:
 
     def drag(self, edit_id: str, d_raw: np.ndarray, *, release: bool = False) -> PredictionOut | None:
         """The prediction for a pointer motion d_raw (2,) since press [m, or px for
-        a tug] (worker thread); None before the columns exist or for another gesture."""
+        a tug] (worker thread); None for another gesture, and before the
+        columns exist (then the latest drag waits for :meth:`resume`)."""
         g = self.current(edit_id)
-        if g is None or not g.ready:
+        if g is None:
+            return None
+        if not g.ready:
+            g.pending_d = np.asarray(d_raw, dtype=np.float64).copy()
             return None
         d = self.design_point(g, d_raw)
         if d is None:
@@ -404,10 +528,17 @@ class SensitivityService:
 
     def release(self, edit_id: str, d_raw: np.ndarray) -> ReleaseOut | None:
         """End gesture ``edit_id``: its final prediction and, for a 3D tug, the new
-        design. Raises PatternError when the tug's design edit is invalid."""
+        design. Raises PatternError when the tug's design edit is invalid. Before
+        the columns exist the release waits (None; :meth:`resume` ends the
+        gesture, or :meth:`expire` after ``hold_s``)."""
         g = self.current(edit_id)
         if g is None:
             return None
+        if not g.ready:
+            g.pending_release = np.asarray(d_raw, dtype=np.float64).copy()
+            self._hold(g, "its Ψ")
+            if not self._columns(g):
+                return None
         out = self.drag(edit_id, d_raw, release=True)
         with self._lock:
             self.gesture = None
@@ -435,6 +566,7 @@ __all__ = [
     "PatternError",
     "Press",
     "PredictionOut",
+    "Readiness",
     "ReleaseOut",
     "SensitivityConfig",
     "SensitivityService",

@@ -6,6 +6,12 @@ cheap methods and queue the rest on two worker threads: ``edits`` (Ψ columns,
 predictions at pointer rate) and ``idle`` (model builds, refactorization,
 error estimates, the solves that enrich the cache). On a 3D tug's release it
 also publishes the tug's new design as a ``pattern``.
+
+A press that comes before the equilibrium (the final drape's refactorization)
+is held by the service and served when it is there; the status says whether
+predictions are ready (``ready``, ``ready_generation``,
+``ready_mesh_generation``) and counts ``gestures_held`` and
+``gestures_expired``.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ from couture.sensitivity.service import (
     NoEquilibrium,
     PredictionOut,
     Press,
+    ReleaseOut,
     SensitivityConfig,
     SensitivityService,
 )
@@ -47,6 +54,8 @@ class Config:
     """[s] budget of one idle solve"""
     enrich_tol: float = 1e-3
     """relative residual the idle solve aims for"""
+    hold_s: float = 5.0
+    """[s] a press that came before its equilibrium waits at most this long"""
 
 
 def main(config: Config) -> None:
@@ -56,10 +65,12 @@ def main(config: Config) -> None:
             pause_s=config.pause_s,
             enrich_seconds=config.enrich_seconds,
             enrich_tol=config.enrich_tol,
+            hold_s=config.hold_s,
         )
     )
     with Node(config.name, config.bus, kind="sensitivity") as node:
         service.count = node.count
+        node.readiness = service.readiness
         bus = node.bus
         pred_pub = bus.publisher("drape/predicted", DrapeMsg)
         pattern_pub = bus.publisher("pattern", PatternMsg)
@@ -115,6 +126,7 @@ def main(config: Config) -> None:
             def job() -> None:
                 if service.equilibrium(msg.mesh_generation, x) is not None:
                     node.count("refactors")
+                    edits.submit("held", resume)
 
             idle.submit("equilibrium", job)
 
@@ -146,15 +158,36 @@ def main(config: Config) -> None:
         # -- edit work (edits worker) -----------------------------------------
         def press_columns(edit_id: str, psi: np.ndarray) -> None:
             try:
-                if service.psi(edit_id, psi) is not None:
-                    node.count("press_columns")
+                g = service.psi(edit_id, psi)
             except NoEquilibrium as e:
                 node.error(str(e))
+                return
+            if g is not None and g.ready:
+                node.count("press_columns")
+                resume()
+
+        def resume() -> None:
+            """Serve what waited on the gesture (its drag, its release)."""
+            g = service.gesture
+            was_ready = g is not None and g.ready
+            try:
+                out = service.resume()
+            except (NoEquilibrium, PatternError) as e:
+                node.error(f"held edit: {e}")
+                return
+            if g is not None and g.ready and not was_ready:
+                node.count("press_columns")
+            if isinstance(out, ReleaseOut):
+                released(out)
+            elif out is not None:
+                published(out)
 
         def predict(edit_id: str, d_raw: np.ndarray) -> None:
             out = service.drag(edit_id, d_raw)
-            if out is None:
-                return
+            if out is not None:
+                published(out)
+
+        def published(out: PredictionOut) -> None:
             publish(out)
             node.count("predictions")
             idle.submit("error", lambda: publish(service.estimate(out)))
@@ -165,8 +198,10 @@ def main(config: Config) -> None:
             except PatternError as e:
                 node.error(f"3D tug {edit_id}: {e}")
                 return
-            if r is None:
-                return
+            if r is not None:
+                released(r)
+
+        def released(r: ReleaseOut) -> None:
             publish(r.prediction)
             if r.prediction is not None:
                 node.count("predictions")
@@ -189,6 +224,9 @@ def main(config: Config) -> None:
                 publish(out)
 
         def tick() -> None:
+            held = service.expire()
+            if held is not None:
+                node.error(f"edit {held.edit_id}: not ready within {config.hold_s:g} s (see the log); gesture given up")
             if idle.pending("enrich"):
                 return
             g = service.pause()
