@@ -180,8 +180,8 @@ def test_sheet_on_sphere_from_flat_converges(method, held, friction, stretch):
 
 
 def test_tunnel_guard_flags_a_step_through_the_body():
-    """A vertex outside the body carried more than one contact offset inside it
-    is a tunnel; a move within the offset layer is not."""
+    """A vertex outside the body carried more than three contact offsets inside
+    it is a tunnel; a move within the offset layer is not."""
     from couture.solvers.common import TunnelGuard
 
     m = sheet_on_sphere("two", False, 500.0, nx=6)
