@@ -177,36 +177,3 @@ def test_sheet_on_sphere_from_flat_converges(method, held, friction, stretch):
     assert ok, why
     # the sheet lies on the sphere: no vertex more than 1 mm inside it
     assert np.linalg.norm(res.x, axis=1).min() > 0.25 - 1e-3
-
-
-def test_tunnel_guard_flags_a_step_through_the_body():
-    """A vertex outside the body carried more than three contact offsets inside
-    it is a tunnel; a move within the offset layer is not."""
-    from couture.solvers.common import TunnelGuard
-
-    m = sheet_on_sphere("two", False, 500.0, nx=6)
-    x = m.mesh.x0.copy()
-    guard = TunnelGuard(m, x)
-    assert not guard.tunnels(x)
-    shallow = x.copy()
-    shallow[:, 1] -= 0.02 + 0.5 * m.contact_offset  # 2 cm above the sphere top: now half an offset inside
-    deep = x.copy()
-    deep[0] = (0.0, 0.0, 0.0)  # the sphere's centre
-    assert guard.tunnels(deep)
-    assert not guard.tunnels(shallow)
-
-
-@pytest.mark.slow
-def test_newton_does_not_converge_with_cloth_pulled_through_the_body():
-    """The skirt at stretch 100 N/m, from placement: Newton used to report
-    'converged' (2.6e-7) with seven vertices up to 4 cm inside the body, its
-    centre front pulled between the legs by a long step (bench extremes). The
-    step is now cut where it would carry a vertex through the body."""
-    from couture.bench import extremes as ex
-
-    case = dict(
-        scene="skirt", solver="newton", kind="fabric", knob="stretch_stiffness", value=100.0, limit_s=60, tol=1e-4
-    )
-    r = ex.run_case(dict(case, label="tunnel"), skirt_vertices=1600)
-    assert r["outcome"] == "converged", r
-    assert r["checks"]["penetration"]["ok"], r["checks"]

@@ -95,38 +95,6 @@ class Watch:
         return ""
 
 
-class TunnelGuard:
-    """Keeps a step from carrying cloth through the body.
-
-    A penalty contact only sees a vertex inside the offset layer: a long Newton
-    step can put a vertex that was outside the body deep inside it, where the
-    signed distance field's gradient may point out of the far side (a skirt's
-    centre front pulled between the legs), and the solve then converges to an
-    equilibrium with cloth 3-4 cm inside the body (measured: the skirt at
-    stretch 100-1e4 N/m, bench extremes). ``tunnels(x_try)``: whether a vertex
-    outside the body at x (phi >= 0) is more than three contact offsets (3 cm)
-    inside it at x_try; the line search then shortens the step. Three, not one:
-    a guard at one offset also cut steps that the golden skirt session takes and
-    recovers from, and sent its hem into another equilibrium 76 mm away, with a
-    soft mode (compliance 52 m); at three the golden path is unchanged and the
-    four tunnelling cases still converge clean."""
-
-    def __init__(self, model, x: np.ndarray):
-        body = getattr(model, "body", None)
-        self.body = body if "contact" in getattr(model, "terms", ()) else None
-        self.idx = None
-        if self.body is not None:
-            phi, _ = self.body.phi_grad(x)
-            self.idx = np.nonzero(phi >= 0.0)[0]
-            self.depth = 3.0 * float(getattr(model, "contact_offset", 0.0))
-
-    def tunnels(self, x_try: np.ndarray) -> bool:
-        if self.body is None or self.idx is None or len(self.idx) == 0:
-            return False
-        phi, _ = self.body.phi_grad(x_try[self.idx])
-        return bool(np.any(phi < -self.depth))
-
-
 def finite(a: np.ndarray) -> bool:
     return bool(np.all(np.isfinite(a)))
 

@@ -42,7 +42,6 @@ from .common import (
     BestState,
     FrictionSchedule,
     ResidualScale,
-    TunnelGuard,
     Watch,
     bad_start,
     energy_round_off,
@@ -273,14 +272,8 @@ class NewtonSolver:
                 alpha = min(1.0, max_step / max(float(np.max(np.abs(P))), 1e-300))
                 slope = float(g @ p)  # -dE/dalpha at 0
                 ta = time.perf_counter()
-                guard = TunnelGuard(model, x)
                 for _ in range(self.max_backtracks):
                     x_try = x + alpha * P
-                    if guard.tunnels(x_try):
-                        alpha *= 0.5
-                        stats["backtracks"] += 1
-                        stats["tunnel_cuts"] = stats.get("tunnel_cuts", 0) + 1
-                        continue
                     E_try = model.energy(x_try)
                     stats["energy_evals"] += 1
                     if np.isfinite(E_try) and E_try <= E - self.armijo * alpha * slope:
