@@ -8,6 +8,7 @@ plots beside it. The figures live in those files, not in docstrings.
 from __future__ import annotations
 
 import argparse
+import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -36,3 +37,21 @@ def write_results(out_dir: Path | str, name: str, results: Any, **json_kw: Any) 
     path = out / f"{name}.json"
     path.write_text(dumps(results, indent=2, **json_kw))
     return path
+
+
+def source_commit() -> str | None:
+    """The source tree's git commit ('+dirty' with local changes), None outside a checkout."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head + ("+dirty" if dirty else "")

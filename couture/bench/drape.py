@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from couture.bench import add_out_arg, write_results
+from couture.bench import add_out_arg, source_commit, write_results
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "pattern" / "examples"
 TOL = 1e-4
@@ -458,24 +458,6 @@ def print_table(cases: list[dict[str, Any]]) -> None:
         print(f"  ({line}, from the solver's stats)")
 
 
-def _commit() -> str | None:
-    """The source tree's git commit (with '+dirty' for local changes), None outside a checkout."""
-    root = Path(__file__).resolve().parents[2]
-    try:
-        head = subprocess.run(
-            ["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10, check=True
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
-            capture_output=True,
-            text=True,
-            timeout=10,
-        ).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return head + ("+dirty" if dirty else "")
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="couture bench drape",
@@ -579,7 +561,7 @@ def main(argv: list[str] | None = None) -> int:
             "cpus": os.cpu_count(),
             "load_average_at_end": list(os.getloadavg()),
         },
-        "commit": _commit(),
+        "commit": source_commit(),
         "args": dict(vars(a), out=str(a.out)),
         "cases": cases,
         "sweep": sw,

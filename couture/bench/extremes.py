@@ -80,7 +80,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from couture.bench import add_out_arg, write_results
+from couture.bench import add_out_arg, source_commit, write_results
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "pattern" / "examples"
 SOLVERS = ("newton", "kinetic", "verlet")
@@ -894,24 +894,6 @@ def _grid(s: str) -> tuple[int, int]:
     return nx, ny
 
 
-def _commit() -> str | None:
-    """The source tree's git commit ('+dirty' with local changes), None outside a checkout."""
-    root = Path(__file__).resolve().parents[2]
-    try:
-        head = subprocess.run(
-            ["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10, check=True
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
-            capture_output=True,
-            text=True,
-            timeout=10,
-        ).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return head + ("+dirty" if dirty else "")
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog="couture bench extremes",
@@ -987,7 +969,7 @@ def main(argv: list[str] | None = None) -> int:
             "cpus": os.cpu_count(),
             "load_average_at_end": list(os.getloadavg()),
         },
-        "commit": _commit(),
+        "commit": source_commit(),
         "cases": rows,
     }
     out = write_results(a.out, "extremes", report, default=_json_default)
