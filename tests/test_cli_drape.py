@@ -237,10 +237,10 @@ def test_follow_drape_passes_its_generation_on_and_raises_on_the_remeshers_rejec
         0.2,
         lambda: client._on_rejected(RejectedMsg(node="remesher", generation=3, element="param:length", reason=reason)),
     ).start()
-    t0 = time.monotonic()
+    # answered by the rejection, not by the 10 s timeout (that would raise TimeoutError)
     with pytest.raises(PatternRejected) as e:
         client.follow_drape(3, timeout=10)
-    assert time.monotonic() - t0 < 5 and e.value.reason == reason and e.value.generation == 3
+    assert e.value.reason == reason and e.value.generation == 3
     assert e.value.element == "param:length" and e.value.node == "remesher"
 
     # a design this client published is matched by its design_id, not by the number it asked for
