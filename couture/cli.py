@@ -45,6 +45,14 @@ def _parser() -> argparse.ArgumentParser:
         choices=["kinetic", "newton", "verlet"],
         help="solver nodes to run (several for side-by-side comparison)",
     )
+    up.add_argument(
+        "--only",
+        nargs="+",
+        metavar="NODE",
+        default=None,
+        help="start only these nodes (remesher, solver, sensitivity, ui, recorder) to split a session over "
+        "machines: e.g. --only solver --connect tcp/<other machine>:7447 (see README, Several machines)",
+    )
     up.add_argument("--ui-host", default="127.0.0.1")
     up.add_argument(
         "--ui-port",
@@ -170,11 +178,19 @@ def _dispatch(args: argparse.Namespace) -> int:
     if args.cmd == "up":
         from couture import supervisor
 
-        ui_port = 0 if args.no_ui else ui_port_for(args.ui_host, args.ui_port)
-        nodes = supervisor.default_nodes(
-            solvers=args.solver, ui=not args.no_ui, ui_host=args.ui_host, ui_port=ui_port, record=args.record
-        )
-        url = "" if args.no_ui else f"http://{args.ui_host}:{ui_port}/"
+        no_ui = args.no_ui or (args.only is not None and "ui" not in args.only)
+        ui_port = 0 if no_ui else ui_port_for(args.ui_host, args.ui_port)
+        try:
+            nodes = supervisor.only_nodes(
+                supervisor.default_nodes(
+                    solvers=args.solver, ui=not args.no_ui, ui_host=args.ui_host, ui_port=ui_port, record=args.record
+                ),
+                args.only,
+            )
+        except ValueError as e:
+            print(f"couture up: {e}", file=sys.stderr)
+            return 2
+        url = "" if no_ui else f"http://{args.ui_host}:{ui_port}/"
         return supervisor.main(supervisor.SupervisorConfig(bus=bus_config_from_args(args), nodes=nodes, ui_url=url))
 
     if args.cmd == "record":

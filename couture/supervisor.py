@@ -96,6 +96,27 @@ def default_nodes(
     return nodes
 
 
+NODE_KINDS = ("remesher", "solver", "sensitivity", "ui", "recorder")
+"""what ``couture up --only`` selects by: a node's name, or a solver node's name before ``-``"""
+
+
+def only_nodes(nodes: list[NodeSpec], kinds: list[str] | None) -> list[NodeSpec]:
+    """The nodes of ``kinds`` (``None``: all of them), for ``couture up --only``:
+    one machine runs some nodes, another the rest (``--only solver`` keeps every
+    ``solver-<name>``). A kind none of ``nodes`` is raises ValueError naming it."""
+    if kinds is None:
+        return list(nodes)
+    unknown = [k for k in kinds if k not in NODE_KINDS]
+    if unknown:
+        raise ValueError(f"--only {' '.join(unknown)}: not a node kind (one of {', '.join(NODE_KINDS)})")
+    picked = [n for n in nodes if n.name.split("-", 1)[0] in kinds]
+    missing = [k for k in kinds if not any(n.name.split("-", 1)[0] == k for n in picked)]
+    if missing:
+        hint = {"recorder": " (the recorder needs --record FILE)", "ui": " (not with --no-ui)"}
+        raise ValueError("--only " + ", ".join(f"{k}: no such node here{hint.get(k, '')}" for k in missing))
+    return picked
+
+
 @dataclass
 class _Child:
     spec: NodeSpec
