@@ -6,6 +6,12 @@ loopback (``tcp/127.0.0.1:7447`` if free, else a free port, unless
 on a free loopback port itself, so peers also find each other by gossip.
 Nothing binds a non-loopback interface unless asked.
 
+Several machines: each runs ``couture up --only <kinds>`` (:func:`only_nodes`);
+one listens on its network address (``--listen tcp/<address>:7447``), the
+others connect to it (``--connect``), so their routers link and each machine's
+nodes reach the others through them; a router that loses the link reconnects
+by itself once it is back (README, "Several machines"; tests/test_netns.py).
+
 Children are started with ``subprocess`` (fork + immediate exec: no Zenoh
 state crosses it) in their own process group, with ``COUTURE_PARENT_PID`` so
 they stop by themselves if the supervisor dies. A child that exits is

@@ -186,6 +186,12 @@ def test_nodes_on_three_machines_through_a_router_survive_a_partition(net: Net, 
     with ExitStack() as stack:
         a = net.exec("a", [*up, "--only", "remesher", "sensitivity", "--listen", endpoint], logs["a"])
         stack.callback(stop, a)
+        # a Zenoh client gives up at once when nothing listens: C starts once A's router does
+        deadline = time.monotonic() + 30
+        while "[up] session" not in logs["a"].read_text(errors="replace"):
+            assert a.poll() is None, f"couture up on machine A exited: {logs['a'].read_text()[-3000:]}"
+            assert time.monotonic() < deadline, f"couture up on machine A not up: {logs['a'].read_text()[-3000:]}"
+            time.sleep(0.1)
         b = net.exec("b", [*up, "--only", "solver", "--solver", "newton", "--connect", endpoint], logs["b"])
         stack.callback(stop, b)
         c = net.exec(

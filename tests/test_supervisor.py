@@ -210,3 +210,21 @@ def test_up_picks_a_free_ui_port_or_fails_clearly_on_an_explicit_taken_one():
         )
     assert r.returncode == 1 and f"couture up: error: --ui-port {taken}: port {taken}" in r.stderr, r.stderr
     assert "started remesher" not in r.stderr
+
+
+def test_up_only_picks_nodes_by_kind_and_names_what_it_cannot_pick():
+    from couture.supervisor import default_nodes, only_nodes
+
+    every = default_nodes(solvers=["kinetic", "newton"], ui=True, record="s.mcap")
+    assert [n.name for n in only_nodes(every, None)] == [n.name for n in every]
+    assert [n.name for n in only_nodes(every, ["solver"])] == ["solver-kinetic", "solver-newton"]
+    assert [n.name for n in only_nodes(every, ["remesher", "sensitivity", "ui"])] == ["remesher", "sensitivity", "ui"]
+    with pytest.raises(ValueError, match="solvers: not a node kind"):
+        only_nodes(every, ["solvers"])
+    with pytest.raises(ValueError, match=r"recorder: no such node here \(the recorder needs --record FILE\)"):
+        only_nodes(default_nodes(ui=False), ["recorder"])
+    # on the command line: exit 2 with the reason, before any node starts
+    r = subprocess.run(
+        [sys.executable, "-m", "couture", "up", "--only", "ui", "--no-ui"], capture_output=True, text=True, timeout=60
+    )
+    assert r.returncode == 2 and "--only ui: no such node here (not with --no-ui)" in r.stderr, r.stderr
