@@ -486,9 +486,23 @@ def drape(
     from couture.jsonout import dumps
     from couture.solvers.service import DEFAULT_TOL
 
-    if bus.tls and not name:
-        print("couture drape: --tls needs --name: the client's certificate in the secure directory", file=sys.stderr)
-        return DrapeExit.USAGE
+    if bus.tls:
+        from couture.bus.secure import POLICY_FILE, Policy
+
+        if not name:
+            print(
+                "couture drape: --tls needs --name: the client's certificate in the secure directory", file=sys.stderr
+            )
+            return DrapeExit.USAGE
+        writers = Policy.load(Path(bus.tls) / POLICY_FILE).writers
+        if name not in writers:  # the session would drop its pattern without a word
+            print(
+                f"couture drape: {name!r} may not publish patterns in this session ({Path(bus.tls) / POLICY_FILE} "
+                f"lists {', '.join(writers) or 'no writers'}); add it with `couture certs --out {bus.tls} "
+                f"--nodes {name} --writers {name}`",
+                file=sys.stderr,
+            )
+            return DrapeExit.USAGE
     if not verbose:
         # ezdxf and the supervisor log at INFO; the result lines say what matters
         logging.getLogger().setLevel(logging.WARNING)

@@ -127,6 +127,16 @@ def test_certs_files_policy_and_clear_errors(certs, tmp_path):
     assert (tmp_path / "ca.pem").read_bytes() == ca_before
     assert json.loads((tmp_path / "policy.json").read_text()) == {"writers": ["ui"], "solvers": ["bot"]}
 
+    # `couture drape` as a node the policy does not let publish: a clear error, not a timeout
+    r = subprocess.run(
+        [sys.executable, "-m", "couture", "drape", str(SKIRT), "--out", str(tmp_path / "out"), "--tls", str(certs)]
+        + ["--name", "intruder", "--connect", "tls/127.0.0.1:1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2 and "'intruder' may not publish patterns" in r.stderr, r.stderr
+
 
 def test_client_without_a_valid_certificate_cannot_connect(certs, tmp_path):
     other = tmp_path / "other-ca"
