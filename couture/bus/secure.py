@@ -19,10 +19,16 @@ requires a certificate from the CA of every peer (``enable_mtls``), and
 applies the policy to what it receives (``access_control``, ingress):
 
 - ``put``/``delete``/``reply`` on ``couture/*/pattern`` and ``couture/*/edit``
-  (and their ``@adv`` history caches) from writers only;
+  (and their sub-keys) from writers only;
 - ``declare_queryable`` and ``reply`` on ``couture/*/solve/*`` and ``put`` on
   the mirror ``couture/*/solve/result/*`` from solvers only;
 - everything else from any node of the CA.
+
+Zenoh matches a rule when the message's key expression is *included* in one
+of the rule's (Zenoh's access control RFC): a queryable declared on a wider
+key (``couture/<s>/**``) is not caught by the ``declare_queryable`` rule and
+is asked, but its replies, on ``solve/<name>`` keys, are dropped where they
+arrive (tests/test_secure_bus.py shows both).
 
 Every node applies the same rules to its own links, so a message is checked
 by whoever receives it first from its sender: the router (whose forwarding
@@ -30,6 +36,9 @@ the others trust: ``router`` is a writer and a solver) or a peer connected
 directly by gossip. Zenoh decides per remote subject: a deny rule of a subject
 the sender matches denies unless another subject it matches allows (see
 ``acl_config``).
+
+Not covered: the UI's web page (HTTP on its own port), and the other topics
+(meshes, drapes, status, liveliness), which any node of the CA may publish.
 """
 
 from __future__ import annotations
@@ -67,9 +76,11 @@ DEFAULT_WRITERS = ("ui", "sensitivity")
 """nodes that publish designs in a standard ``couture up`` (the UI; the 3D tug)"""
 
 PATTERN_KEYS = [f"couture/*/{t}{suffix}" for t in ("pattern", "edit") for suffix in ("", "/**", "/@adv/**")]
-"""what only writers may put (and, from a history cache, reply with); ``**``
-does not match the verbatim ``@adv`` chunk of zenoh-ext's caches, hence
-their own entries"""
+"""what only writers may put, and reply with: a zenoh-ext history cache
+answers a late joiner with the sample's own key (``couture/<s>/pattern``),
+so denying ``reply`` there keeps an unlisted node's cached design from late
+joiners. The sub-keys are closed too (``**`` does not match the verbatim
+``@adv`` chunk, hence its own entry)."""
 SOLVE_KEYS = ["couture/*/solve/*"]
 """the solve queryables: only solvers may declare one or reply"""
 SOLVE_RESULT_KEYS = ["couture/*/solve/result/*"]
