@@ -147,7 +147,56 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="also show node lifecycle and library logs (default: progress and the result only)",
     )
+    dp.add_argument(
+        "--name",
+        default=None,
+        help="this client's node name (with --tls: its certificate DIR/NAME.pem, which must be a writer)",
+    )
     add_bus_args(dp)
+
+    from couture.bus.secure import DEFAULT_HOSTS, DEFAULT_WRITERS, STANDARD_NODES
+
+    ct = sub.add_parser(
+        "certs",
+        help="make a development CA, node certificates and an access policy for a secured session (--tls DIR)",
+        description="Make (or add to) a secure directory for `couture up --tls DIR` and `--tls DIR` on nodes\n"
+        "and clients: a development CA (kept when DIR has one), one key (mode 0600) and certificate per\n"
+        "node (common name = the node's --name; 'router' is the supervisor's) and policy.json, the\n"
+        "names that may change the design (put on pattern and edit) and answer solve queries.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ct.add_argument("--out", required=True, metavar="DIR", help="the secure directory (made if missing)")
+    ct.add_argument(
+        "--nodes",
+        nargs="+",
+        default=list(STANDARD_NODES),
+        metavar="NAME",
+        help="node names to issue certificates for (default: every node `couture up` may start: %(default)s)",
+    )
+    ct.add_argument(
+        "--writers",
+        nargs="*",
+        default=None,
+        metavar="NAME",
+        help=f"names that may publish pattern and edit, added to the policy (default: those of {list(DEFAULT_WRITERS)} "
+        "among --nodes); they get certificates too",
+    )
+    ct.add_argument(
+        "--solvers",
+        nargs="*",
+        default=None,
+        metavar="NAME",
+        help="names that may answer solve queries, added to the policy (default: the solver-* among --nodes)",
+    )
+    ct.add_argument(
+        "--host",
+        action="append",
+        dest="hosts",
+        default=None,
+        metavar="HOST",
+        help=f"IP address or DNS name the certificates are valid for (repeatable; default {' and '.join(DEFAULT_HOSTS)})",
+    )
+    ct.add_argument("--days", type=int, default=365, help="validity of the node certificates [days]")
 
     gp = sub.add_parser("golden", help="golden recordings: make or check recordings/<case>.mcap", add_help=False)
     gp.add_argument("rest", nargs=argparse.REMAINDER)
@@ -192,6 +241,19 @@ def _dispatch(args: argparse.Namespace) -> int:
             return 2
         url = "" if no_ui else f"http://{args.ui_host}:{ui_port}/"
         return supervisor.main(supervisor.SupervisorConfig(bus=bus_config_from_args(args), nodes=nodes, ui_url=url))
+
+    if args.cmd == "certs":
+        from couture.bus.secure import POLICY_FILE, Policy, make_certs
+
+        written = make_certs(
+            args.out, args.nodes, writers=args.writers, solvers=args.solvers, hosts=args.hosts, days=args.days
+        )
+        policy = Policy.load(Path(args.out) / POLICY_FILE)
+        print(f"wrote {len(written)} files to {args.out} (keys mode 0600)")
+        print(f"  may publish pattern/edit: {', '.join(policy.writers) or 'nobody'}")
+        print(f"  may answer solve:         {', '.join(policy.solvers) or 'nobody'}")
+        print(f"run: couture up --tls {args.out}")
+        return 0
 
     if args.cmd == "record":
         from couture.recording.__main__ import config_from_args
@@ -261,6 +323,7 @@ def _dispatch(args: argparse.Namespace) -> int:
             solver=args.solver,
             solver_max_seconds=args.solver_max_seconds,
             verbose=args.verbose or args.drape_verbose,
+            name=args.name,
         )
 
     if args.cmd == "bench":
@@ -417,6 +480,7 @@ def drape(
     solver: str = "kinetic",
     solver_max_seconds: float | None = None,
     verbose: bool = False,
+    name: str | None = None,
 ) -> int:
     """Drape a pattern file: join the bus given by ``bus.connect`` or start the
     nodes (no UI), publish the pattern, wait for the final drape/fine of that
@@ -429,7 +493,8 @@ def drape(
 
     Node output (lifecycle, library logs) goes to ``out/nodes.log`` unless
     ``verbose``; ``timeout`` [s] bounds the wait for the fine drape and
-    ``solver_max_seconds`` [s] caps each level's solve in a started solver."""
+    ``solver_max_seconds`` [s] caps each level's solve in a started solver;
+    ``name`` is the client's node name (its certificate with ``bus.tls``)."""
     from contextlib import ExitStack
 
     from couture import supervisor
@@ -437,6 +502,23 @@ def drape(
     from couture.jsonout import dumps
     from couture.solvers.service import DEFAULT_TOL
 
+    if bus.tls:
+        from couture.bus.secure import POLICY_FILE, Policy
+
+        if not name:
+            print(
+                "couture drape: --tls needs --name: the client's certificate in the secure directory", file=sys.stderr
+            )
+            return DrapeExit.USAGE
+        writers = Policy.load(Path(bus.tls) / POLICY_FILE).writers
+        if name not in writers:  # the session would drop its pattern without a word
+            print(
+                f"couture drape: {name!r} may not publish patterns in this session ({Path(bus.tls) / POLICY_FILE} "
+                f"lists {', '.join(writers) or 'no writers'}); add it with `couture certs --out {bus.tls} "
+                f"--nodes {name} --writers {name}`",
+                file=sys.stderr,
+            )
+            return DrapeExit.USAGE
     if not verbose:
         # ezdxf and the supervisor log at INFO; the result lines say what matters
         logging.getLogger().setLevel(logging.WARNING)
@@ -473,7 +555,7 @@ def drape(
                 )
             )
             cfg = sup.child_bus
-        client = stack.enter_context(Client(bus=cfg))
+        client = stack.enter_context(Client(bus=cfg, name=name))
         stack.callback(progress.close)
         if not bus.connect:
             client.wait_nodes(["remesher", f"solver-{solver}"], timeout=min(30.0, timeout))

@@ -95,7 +95,10 @@ def load_design(path: str | os.PathLike) -> Design:
 class Client:
     """A bus participant for scripts and tests. Context manager.
 
-    ``connect`` defaults to ``tcp/127.0.0.1:7447``, where ``couture up`` listens."""
+    ``connect`` defaults to ``tcp/127.0.0.1:7447``, where ``couture up`` listens.
+    In a secured session (``couture up --tls DIR``) pass ``tls=DIR``, a
+    ``tls/`` endpoint and the ``name`` whose certificate ``DIR/<name>.pem`` the
+    client presents (couture.bus.secure)."""
 
     def __init__(
         self,
@@ -105,11 +108,13 @@ class Client:
         listen: list[str] | None = None,
         name: str | None = None,
         bus: BusConfig | None = None,
+        tls: str | None = None,
     ) -> None:
         self.cfg = bus or BusConfig(
             session=session,
             connect=list(connect) if connect is not None else [DEFAULT_ENDPOINT],
             listen=list(listen) if listen is not None else ["tcp/127.0.0.1:0"],
+            tls=tls,
         )
         self.name = name or f"client-{os.getpid()}-{uuid.uuid4().hex[:6]}"
         self._cond = threading.Condition()

@@ -4,7 +4,10 @@ Topology: the supervisor opens a Zenoh *router* session listening on
 loopback (``tcp/127.0.0.1:7447`` if free, else a free port, unless
 ``--listen`` names one; the endpoint is printed); every child is a peer that connects to it (``--connect``) and listens
 on a free loopback port itself, so peers also find each other by gossip.
-Nothing binds a non-loopback interface unless asked.
+Nothing binds a non-loopback interface unless asked. With ``--tls DIR``
+(``SupervisorConfig.bus.tls``) every endpoint is ``tls/`` instead, the router
+uses the certificate ``DIR/router.pem`` and each child its own
+(couture.bus.secure).
 
 Several machines: each runs ``couture up --only <kinds>`` (:func:`only_nodes`);
 one listens on its network address (``--listen tcp/<address>:7447``), the
@@ -42,8 +45,9 @@ import time
 import uuid
 from dataclasses import dataclass, field
 
-from couture.bus import DEFAULT_ENDPOINT, DEFAULT_PORT, PARENT_PID_ENV, Bus, BusConfig, StopFlag, open_session
+from couture.bus import DEFAULT_PORT, PARENT_PID_ENV, Bus, BusConfig, StopFlag, open_session
 from couture.bus.ports import free_port, port_is_free
+from couture.bus.secure import ROUTER_NAME, node_files
 
 log = logging.getLogger("couture.supervisor")
 
@@ -139,10 +143,11 @@ class Supervisor:
     def __init__(self, config: SupervisorConfig) -> None:
         self.config = config
         cfg = config.bus
+        proto = "tls" if cfg.tls else "tcp"
         if cfg.listen and cfg.listen != ["tcp/127.0.0.1:0"]:
             listen = list(cfg.listen)
         else:  # the well-known port (what Client connects to by default), or any free one
-            listen = [DEFAULT_ENDPOINT if port_is_free(DEFAULT_PORT) else f"tcp/127.0.0.1:{free_port()}"]
+            listen = [f"{proto}/127.0.0.1:{DEFAULT_PORT if port_is_free(DEFAULT_PORT) else free_port()}"]
         self.bus_config = BusConfig(
             session=cfg.session,
             connect=list(cfg.connect),
@@ -150,10 +155,20 @@ class Supervisor:
             mode="router",
             config_file=cfg.config_file,
             multicast=cfg.multicast,
+            tls=cfg.tls,
+            tls_name=ROUTER_NAME if cfg.tls else "",
         )
         self.child_bus = BusConfig(
-            session=cfg.session, connect=listen, listen=["tcp/127.0.0.1:0"], mode="peer", multicast=cfg.multicast
+            session=cfg.session,
+            connect=listen,
+            listen=[f"{proto}/127.0.0.1:0"],
+            mode="peer",
+            multicast=cfg.multicast,
+            tls=cfg.tls,
         )
+        if cfg.tls:  # a node without a certificate would only crash and restart: say so now
+            for spec in config.nodes:
+                node_files(cfg.tls, spec.name)
         self.children = {s.name: _Child(s) for s in config.nodes}
         self.bus: Bus | None = None
         self.events: list[tuple[str, bool]] = []

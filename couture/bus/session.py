@@ -66,23 +66,40 @@ class BusConfig:
     """a Zenoh JSON5 config file applied first (flags override it)"""
     multicast: bool = False
     """multicast scouting (off: loopback-only by default)"""
+    tls: str | None = None
+    """a secure directory (``couture certs``): TLS only, mTLS, access control
+    (couture.bus.secure); None: plain TCP as before"""
+    tls_name: str = ""
+    """whose certificate in ``tls`` to use; '' for the session's node name"""
 
-    def zenoh_config(self) -> zenoh.Config:
+    def zenoh_config(self, name: str = "") -> zenoh.Config:
+        """The Zenoh config; ``name`` picks the certificate when ``tls`` is set
+        (``tls_name`` wins over it)."""
         if self.config_file:
             with open(self.config_file) as f:
                 conf = zenoh.Config.from_json5(f.read())
         else:
             conf = zenoh.Config()
         conf.insert_json5("mode", json.dumps(self.mode))
+        listen = self.listen
+        if self.tls and listen == ["tcp/127.0.0.1:0"]:
+            listen = ["tls/127.0.0.1:0"]  # the loopback default, secured
         if self.connect:
             conf.insert_json5("connect/endpoints", json.dumps(self.connect))
-        if self.listen and self.mode != "client":
-            conf.insert_json5("listen/endpoints", json.dumps(self.listen))
+        if listen and self.mode != "client":
+            conf.insert_json5("listen/endpoints", json.dumps(listen))
         conf.insert_json5("scouting/multicast/enabled", json.dumps(self.multicast))
         if self.mode != "client":
             conf.insert_json5("scouting/gossip/enabled", "true")
         # advanced publishers (history for late joiners on state topics) need timestamps
         conf.insert_json5("timestamping/enabled", '{"router": true, "peer": true, "client": true}')
+        if self.tls:
+            from couture.bus import secure
+
+            secure.check_endpoints(self.connect, "--connect")
+            if self.mode != "client":
+                secure.check_endpoints(listen, "--listen")
+            secure.apply(conf, self.tls, self.tls_name or name)
         return conf
 
     def to_args(self) -> list[str]:
@@ -96,6 +113,8 @@ class BusConfig:
             args += ["--config", self.config_file]
         if self.multicast:
             args += ["--multicast"]
+        if self.tls:
+            args += ["--tls", self.tls]
         return args
 
 
@@ -122,10 +141,18 @@ def add_bus_args(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     g.add_argument("--mode", "-m", choices=["peer", "client", "router"], default="peer")
     g.add_argument("--config", dest="zenoh_config", default=None, metavar="FILE", help="Zenoh JSON5 config file")
     g.add_argument("--multicast", action="store_true", help="enable multicast scouting (off by default)")
+    g.add_argument(
+        "--tls",
+        metavar="DIR",
+        default=None,
+        help="join a secured session: TLS endpoints only (default listen tls/127.0.0.1:0), this node's certificate "
+        "DIR/<name>.pem signed by DIR/ca.pem, access control from DIR/policy.json (make DIR with `couture certs`)",
+    )
     return parser
 
 
 def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
+    tls = getattr(args, "tls", None)
     return BusConfig(
         session=args.session,
         connect=list(args.connect),
@@ -133,6 +160,7 @@ def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
         mode=args.mode,
         config_file=args.zenoh_config,
         multicast=args.multicast,
+        tls=tls,
     )
 
 
@@ -274,7 +302,7 @@ class Bus:
         self.name = name
         self.prefix = f"couture/{cfg.session}"
         self.stats = Stats()
-        self.zenoh = zenoh.open(cfg.zenoh_config())
+        self.zenoh = zenoh.open(cfg.zenoh_config(name))
         self._closeables: list[Any] = []
         self._workers: list[threading.Thread] = []
         self._closed = threading.Event()
