@@ -177,3 +177,26 @@ def test_sheet_on_sphere_from_flat_converges(method, held, friction, stretch):
     assert ok, why
     # the sheet lies on the sphere: no vertex more than 1 mm inside it
     assert np.linalg.norm(res.x, axis=1).min() > 0.25 - 1e-3
+
+
+class _Inside:
+    """A body the cloth lies 5 cm inside, at a point where its distance field has no
+    gradient (as at the centre of a symmetric body): the penalty pushes nowhere, so
+    the forces can balance there, and only the depth tells the cloth passed through."""
+
+    def phi_grad(self, points):
+        return np.full(len(points), -0.05), np.zeros((len(points), 3))
+
+
+@pytest.mark.parametrize("method", ["newton", "kinetic"])
+def test_a_balance_inside_the_body_is_never_called_converged(method):
+    sheet = cloth_hanging_sheet(5, 5, size=0.2)
+    free_hanging = get_solver("newton").solve(sheet, sheet.mesh.x0, tol=1e-8)
+    assert free_hanging.converged, free_hanging.diagnosis
+    m = cloth_hanging_sheet(5, 5, size=0.2, scene=Scene(body=_Inside()))
+    res = get_solver(method).solve(m, free_hanging.x, tol=1e-6, max_seconds=20, max_iters=200)
+    assert res.residual <= 1e-6  # balanced: the same state as without the body
+    assert not res.converged
+    assert "in body" in res.diagnosis and "50 mm" in res.diagnosis, res.diagnosis
+    ok, _, why = verdict(m, res.x, 1e-6)
+    assert not ok and "inside the body" in why

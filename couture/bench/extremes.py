@@ -402,7 +402,17 @@ def stop_kind(diagnosis: str) -> str:
     d = diagnosis.strip()
     if not d:
         return ""
-    for kind in ("rejected", "max_seconds", "max_iters", "stalled", "diverged", "friction", "exception", "worker"):
+    for kind in (
+        "rejected",
+        "max_seconds",
+        "max_iters",
+        "stalled",
+        "diverged",
+        "friction",
+        "in body",
+        "exception",
+        "worker",
+    ):
         if d.startswith(kind):
             return kind
     return d.split()[0].rstrip(":;,")

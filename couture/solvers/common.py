@@ -166,16 +166,44 @@ def friction_allowance(model, x: np.ndarray, tol: float) -> float:
     return tol * d / np.sqrt(max(int(model.n), 1))
 
 
+def deepest_inside(model, x: np.ndarray) -> float:
+    """[m] how far the deepest free vertex lies inside the body's surface (phi < 0),
+    0 when none does or the model has no body. A penalty contact balances forces
+    inside the offset layer (phi in [0, offset)); a vertex below the surface
+    itself went through it (a long step carried it between the legs, where the
+    distance field pushes out through the far side)."""
+    body = getattr(model, "body", None)
+    if body is None:
+        return 0.0
+    free = np.asarray(model.free, bool)
+    if not free.any():
+        return 0.0
+    phi, _ = body.phi_grad(np.ascontiguousarray(x[free], dtype=np.float64))
+    return float(max(0.0, -np.min(phi)))
+
+
 def verdict(model, x: np.ndarray, tol: float) -> tuple[bool, float, str]:
     """(converged, relative residual, why not) decided from fresh forces at x,
     independently of how the solver's loop got there: the relative residual is
-    at most ``tol`` and every friction anchor holds within its static Coulomb
-    cone, |f_t| <= mu_s f_n (to ``friction_allowance``)."""
+    at most ``tol``, no free vertex lies inside the body's surface
+    (``deepest_inside``: a balance reached through the body is a wrong answer),
+    and every friction anchor holds within its static Coulomb cone,
+    |f_t| <= mu_s f_n (to ``friction_allowance``)."""
     r = float(model.relative_residual(x))
     if not np.isfinite(r):
         return False, r, "non-finite residual"
     if r > tol:
         return False, r, f"residual {r:.3g} > tol {tol:.3g}"
+    inside = deepest_inside(model, x)
+    if inside > 0.0:
+        return (
+            False,
+            r,
+            (
+                f"in body: a vertex lies {inside * 1e3:.3g} mm inside the body surface, beyond the "
+                f"{getattr(model, 'contact_offset', 0.0) * 1e3:.3g} mm contact layer (the cloth passed through)"
+            ),
+        )
     excess_fn = getattr(model, "friction_excess", None)
     excess = float(excess_fn(x)) if excess_fn is not None else 0.0
     allowed = friction_allowance(model, x, tol)
