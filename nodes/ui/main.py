@@ -234,6 +234,7 @@ class UIAdapter:
             msg.method,
             residual=msg.residual,
             error_estimate=msg.error_estimate,
+            error_estimate_m=msg.error_estimate_m,
             generation=msg.generation,
             solver=msg.solver,
             converged=msg.converged if msg.solver else None,
