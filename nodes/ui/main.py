@@ -371,7 +371,10 @@ class UIAdapter:
         self.node.count("rejected_in")
 
     def on_status(self, msg: StatusMsg) -> None:
-        self.ui.set_node_status(msg.node, kind=msg.kind, state=msg.state, rates=msg.rates, last_error=msg.last_error)
+        state = msg.state
+        if msg.regularization and msg.regularization != "none":
+            state += f" (regularized: {msg.regularization})"
+        self.ui.set_node_status(msg.node, kind=msg.kind, state=state, rates=msg.rates, last_error=msg.last_error)
 
 
 def _same_design(a: str, b: str) -> bool:
