@@ -271,6 +271,10 @@ class DrapeMsg(Message, kw_only=True):
     """gesture a prediction belongs to"""
     error_estimate: float | None = None
     """cheap error estimate of a prediction (its relative force residual)"""
+    error_estimate_m: float | None = None
+    """estimated distance of a prediction from the true equilibrium [m] (the
+    largest vertex motion of one Newton correction); None when not computed.
+    An optional field added within v1: older readers ignore it"""
     request_id: str = ""
     """solve request this drape answers, '' for bus-driven solves"""
     final: bool = True
@@ -309,6 +313,11 @@ class StatusMsg(Message, kw_only=True):
     ready or not applicable"""
     ready_mesh_generation: int = -1
     """the fine mesh the node is ready for, -1 when not ready or not applicable"""
+    regularization: str = ""
+    """the sensitivity node: what its factorization added to the exact
+    linearisation, in words ('none', or the bending or shift added, why, and
+    its measured effect); '' when not applicable. An optional field added
+    within v1: older readers ignore it"""
 
 
 class RejectedMsg(Message, kw_only=True):

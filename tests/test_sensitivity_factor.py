@@ -110,12 +110,18 @@ def test_sphere_drape_columns_match_finite_differences(strip):
     counted once)."""
     m, x = strip
     psi = stretch_psi(m.X)
-    f = SensitivityFactor(m, x, bend_floor=False)
+    f = SensitivityFactor(m, x)  # the node's configuration: no regularization needed here
+    assert f.info.regularization == "none"
     S = f.columns(psi)
     fd = fd_columns(strip_over_sphere, x, psi, 1e-4)
     for j in range(2):
         assert np.abs(fd[:, :, j]).max() > 1e-2
         assert relerr(S[:, :, j], fd[:, :, j]) < 1e-3
+    # SC's always-on floor, for the record: its measured effect and its error are
+    # both percent-level on this 1e-6 N m fabric (~2000x its bending added)
+    floored = SensitivityFactor(m, x, bend_floor=True)
+    Sf = floored.columns(psi)
+    assert relerr(Sf, fd) > 1e-2 and floored.info.regularization_effect > 1e-2
 
 
 def test_press_rhs_is_the_models_derivative_and_matches_rebuilt_models(strip):
@@ -146,13 +152,26 @@ def test_parameter_column_is_the_psi_column(sheet):
     assert np.allclose(f.param_column(psi[:, :, 0]), S[:, :, 0], atol=1e-12 * np.abs(S).max())
 
 
-def test_bend_floor_is_applied_and_reported(sheet):
+def test_bend_floor_is_applied_only_on_request_and_reported(sheet):
     m, x = sheet
-    f = SensitivityFactor(m, x)  # bend_floor=True by default
+    # the default (the node's) factors the exact linearisation: nothing added
+    plain = SensitivityFactor(m, x)
+    assert plain.info.bend_added == 0.0 and plain.info.shift == 0.0 and plain.info.exact_hessian
+    assert plain.info.regularization == "none" and not plain.info.regularized
+    f = SensitivityFactor(m, x, bend_floor=True)  # SC's always-on floor, opt-in
     L = np.linalg.norm(m.X.max(0) - m.X.min(0))
     k_floor = 1e-4 * (m.lam + m.mu) * L**2
     assert f.info.bend_floor == pytest.approx(k_floor)
     assert f.info.bend_added == pytest.approx(k_floor - m.bend_stiffness)
+    assert f.info.regularized and "N m bending" in f.info.regularization
+    # its effect on the prediction is measured once columns are computed
+    psi = stretch_psi(m.X)
+    S, S0 = f.columns(psi), plain.columns(psi)
+    eff = f.info.regularization_effect
+    assert eff > 1e-3 and plain.info.regularization_effect == 0.0
+    assert f"effect {eff:.1e}" in f.info.regularization
+    # it is the relative residual of the floored columns in the exact system
+    assert relerr(S, S0) > 1e-3
     # a model already stiffer than the floor is left alone
     stiff = sheet_pinned_corners(fabric=SimpleFabric(bend_stiffness=10 * k_floor))
     x2, _ = newton(stiff, stiff.mesh.x0, tol=1e-10)
@@ -175,15 +194,17 @@ def cantilever(bend):
 def test_near_singular_cantilever_falls_back_to_thick_bending():
     m = cantilever(1e-13)
     x = m.mesh.x0.copy()
-    f = SensitivityFactor(m, x, bend_floor=False)
+    f = SensitivityFactor(m, x)  # as the node runs it: regularized only because it must be
     assert f.info.fallback and "near-singular" in f.info.fallback
     assert f.info.bend_added == pytest.approx(f.info.bend_floor - m.bend_stiffness)
     assert f.info.lambda_min_rel >= 1e-10
+    assert "near-singular" in f.info.regularization
     # the response is finite and in-plane for an in-plane edit
     psi = np.zeros((m.n, 2, 2))
     psi[:, 0, 0] = m.X[:, 0]
     S = f.columns(psi)
     assert np.all(np.isfinite(S))
+    assert np.isfinite(f.info.regularization_effect)
     assert np.abs(S[:, 1, 0]).max() < 1e-6 * np.abs(S[:, 0, 0]).max()
     # a thick enough plate does not trigger it
     ok = SensitivityFactor(cantilever(1e-3), x, bend_floor=False)

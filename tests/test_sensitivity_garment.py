@@ -109,7 +109,7 @@ def tug(model, x, psi, drag_px=30.0):
     """Tug the front hem point down by drag_px in a camera at hem height.
     Returns (Δg, world distance of the drag at the hem, hem screen motion after
     applying Δg and re-solving, the DragResult at a waist point)."""
-    f = SensitivityFactor(model, x)  # as the node runs it: floor on
+    f = SensitivityFactor(model, x)  # as the node runs it: exact linearisation, floor only if needed
     s = f.param_column(psi[:, :, 0])
     hem = np.nonzero(model.X[:, 1] < model.X[:, 1].min() + 1e-9)[0]
     i = hem[np.argmax(x[hem, 2])]  # the hem vertex facing the camera

@@ -214,8 +214,11 @@ def test_sensitivity_2d_gesture_press_drag_estimate_release(equilibrium):
     assert out.method in ("linear", "gmls") and out.error_estimate is None and not out.release
     dy = out.x[:, 1] - x_eq[:, 1]
     assert dy[mesh.pinned].max() == 0.0 and dy.min() < -0.005  # the free part moves down, pins stay
+    assert s.readiness().regularization == "none"  # the exact linearisation factored as it is
     est = s.estimate(out)
     assert est is not None and np.isfinite(est.error_estimate) and est.error_estimate < 0.1
+    # and its distance estimate [m], which the UI shows in mm
+    assert est.error_estimate_m is not None and 0.0 < est.error_estimate_m < 0.1
     newer = s.drag("e1", 2 * d)
     assert s.estimate(out) is None and newer is not None  # superseded
     # a solver drape during the gesture does not move the equilibrium

@@ -502,3 +502,13 @@ def test_page_port_taken_falls_back_or_fails_naming_it():
             second.stop()
     finally:
         first.stop()
+
+
+def test_a_prediction_shows_its_distance_estimate_in_mm():
+    from couture.ui.state import DrapeFrame
+    from couture.ui.status import describe_frame
+
+    f = DrapeFrame(np.zeros((3, 3)), "predicted", "gmls", error_estimate=0.02, error_estimate_m=0.0012)
+    assert "about 1.2 mm from equilibrium" in describe_frame(f)
+    pending = DrapeFrame(np.zeros((3, 3)), "predicted", "gmls")
+    assert "error estimate pending" in describe_frame(pending)

@@ -192,6 +192,7 @@ class Node:
             ready=True if r is None else bool(r.ready),
             ready_generation=-1 if r is None else int(r.generation),
             ready_mesh_generation=-1 if r is None else int(r.mesh_generation),
+            regularization=str(getattr(r, "regularization", "")),
         )
 
     def publish_status(self) -> None:

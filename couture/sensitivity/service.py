@@ -81,6 +81,8 @@ class Readiness:
     """the design (the remesher's number) of that equilibrium's mesh, -1 when not ready"""
     mesh_generation: int = -1
     """that fine mesh's number, -1 when not ready"""
+    regularization: str = ""
+    """what the factorization added to the exact linearisation ('none'; '' before one)"""
 
 
 @dataclass
@@ -173,6 +175,8 @@ class PredictionOut:
     method: str
     error_estimate: float | None
     """relative force residual of x at the edited rest shape (None: not computed yet)"""
+    error_estimate_m: float | None = None
+    """estimated distance of x from the true equilibrium [m] (None: not computed yet)"""
     release: bool = False
     """the gesture's final prediction (the solver's warm start)"""
     prediction: Prediction | None = field(default=None, repr=False)
@@ -278,8 +282,15 @@ class SensitivityService:
             info = self.predictor.refactor()
             with self._lock:
                 self.eq_mesh_generation, self.eq_generation = mesh_generation, generation
+        held = self.predictor.friction_held
         log.info(
-            "refactored at mesh generation %d in %.0f ms (%s)", mesh_generation, 1e3 * info.refactor_s, info.backend
+            "refactored at mesh generation %d in %.0f ms (%s); friction: %d sticking, %d sliding; regularization: %s",
+            mesh_generation,
+            1e3 * info.refactor_s,
+            info.backend,
+            held.sticking,
+            held.sliding,
+            info.regularization,
         )
         return info
 
@@ -288,7 +299,10 @@ class SensitivityService:
         with self._lock:
             if self.model is None or self.eq_mesh_generation != self.mesh_generation:
                 return Readiness(False)
-            return Readiness(True, self.eq_generation, self.eq_mesh_generation)
+            info = self.predictor.factor.info if self.predictor.factor is not None else None
+            return Readiness(
+                True, self.eq_generation, self.eq_mesh_generation, info.regularization if info is not None else ""
+            )
 
     # -- gesture ----------------------------------------------------------------
     def press(self, press: Press) -> Gesture | None:
@@ -463,9 +477,12 @@ class SensitivityService:
         if g is None or p is None or self.predictor.last is not p:
             return None
         err = self.predictor.error_of(p.x, p.d)
-        return self._out(g, p, err, False)
+        err_m = self.predictor.distance_of(p.x, p.d)
+        return self._out(g, p, err, False, err_m if np.isfinite(err_m) else None)
 
-    def _out(self, g: Gesture, p: Prediction, err: float | None, release: bool) -> PredictionOut:
+    def _out(
+        self, g: Gesture, p: Prediction, err: float | None, release: bool, err_m: float | None = None
+    ) -> PredictionOut:
         return PredictionOut(
             edit_id=g.edit_id,
             generation=g.generation,
@@ -474,6 +491,7 @@ class SensitivityService:
             d=p.d,
             method=p.method,
             error_estimate=err,
+            error_estimate_m=err_m,
             release=release,
             prediction=p,
         )

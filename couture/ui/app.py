@@ -263,6 +263,7 @@ class CoutureUI:
         diagnosis: str = "",
         final: bool = True,
         edit_id: str = "",
+        error_estimate_m: float | None = None,
     ) -> None:
         """Store a drape to render; returns at once (the newest one wins)."""
         self.renderer.slot.put(
@@ -279,6 +280,7 @@ class CoutureUI:
                 diagnosis=diagnosis,
                 final=final,
                 edit_id=edit_id,
+                error_estimate_m=error_estimate_m,
             )
         )
 

@@ -77,6 +77,8 @@ class DrapeFrame:
     edit_id: str = ""
     received: float = field(default_factory=time.time)
     """arrival time, Unix [s]"""
+    error_estimate_m: float | None = None
+    """a prediction's estimated distance from the true equilibrium [m] (None: not known)"""
 
 
 FABRIC_PRESETS: dict[str, Fabric] = {

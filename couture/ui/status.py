@@ -40,7 +40,12 @@ def useful_rates(rates: dict[str, float]) -> list[tuple[str, float]]:
 def describe_frame(f: DrapeFrame) -> str:
     """Which method produced the drape on screen, in words."""
     if f.level == "predicted":
-        err = "error estimate pending" if f.error_estimate is None else f"error estimate {f.error_estimate:.2g}"
+        if f.error_estimate_m is not None and math.isfinite(f.error_estimate_m):
+            err = f"about {1e3 * f.error_estimate_m:.2g} mm from equilibrium (estimate)"
+        elif f.error_estimate is None:
+            err = "error estimate pending"
+        else:
+            err = f"error estimate {f.error_estimate:.2g}"
         return f"prediction ({f.method or '?'}), {err}, generation {f.generation}"
     who = f.solver or f.method or "solver"
     if f.solver and f.method and f.method not in f.solver:

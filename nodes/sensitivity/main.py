@@ -90,6 +90,7 @@ def main(config: Config) -> None:
                     edit_id=out.edit_id,
                     method=out.method,
                     error_estimate=out.error_estimate,
+                    error_estimate_m=out.error_estimate_m,
                     generation=out.generation,
                     final=True,
                     diagnosis="release" if out.release else "",

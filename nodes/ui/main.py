@@ -234,6 +234,7 @@ class UIAdapter:
             msg.method,
             residual=msg.residual,
             error_estimate=msg.error_estimate,
+            error_estimate_m=msg.error_estimate_m,
             generation=msg.generation,
             solver=msg.solver,
             converged=msg.converged if msg.solver else None,
@@ -370,7 +371,10 @@ class UIAdapter:
         self.node.count("rejected_in")
 
     def on_status(self, msg: StatusMsg) -> None:
-        self.ui.set_node_status(msg.node, kind=msg.kind, state=msg.state, rates=msg.rates, last_error=msg.last_error)
+        state = msg.state
+        if msg.regularization and msg.regularization != "none":
+            state += f" (regularized: {msg.regularization})"
+        self.ui.set_node_status(msg.node, kind=msg.kind, state=state, rates=msg.rates, last_error=msg.last_error)
 
 
 def _same_design(a: str, b: str) -> bool:
