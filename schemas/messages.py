@@ -309,6 +309,14 @@ class StatusMsg(Message, kw_only=True):
     ready or not applicable"""
     ready_mesh_generation: int = -1
     """the fine mesh the node is ready for, -1 when not ready or not applicable"""
+    nodes: dict[str, bool] = {}
+    """the session's nodes as this node sees them by liveliness, name -> alive
+    now (the ui: the list on its page, where a dead node stays listed as
+    dead); {} from a node that does not watch them"""
+    shown: str = ""
+    """what a ui node has on screen, in the words of its status panel
+    ('fine solve by solver-newton (newton), residual 3e-05, converged,
+    generation 2'); '' elsewhere or before the first drape"""
 
 
 class RejectedMsg(Message, kw_only=True):
