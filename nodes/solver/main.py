@@ -176,8 +176,8 @@ def main(config: Config) -> None:
                 worker.submit(f"mesh/{m.mesh.level}", lambda m=m: take(m))
 
         def on_mesh(msg: MeshMsg) -> None:
-            if msg.unchanged:
-                return  # the mesh already held, re-sent to carry Ψ
+            # an unchanged mesh (re-sent to carry Ψ) is a repeat of the one held, dropped by the
+            # matcher; a solver restarted after a press gets it as the remesher's last mesh
             prolong = None
             if msg.fine_parent_tri is not None and msg.fine_bary is not None:
                 prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
