@@ -201,7 +201,7 @@ def run(n: int, *, pool: int, rounds: int, drags: int, hz: float, solver: str, t
         "designs_per_min": (designs - lost_designs) / minutes,
         "level_solves": solves,
         "solves_per_min": solves / minutes,
-        "solves_by_member": per_member,
+        "solves_by_member_incl_first_drapes": per_member,
         "minutes": minutes,
         "lost": {"last_drag_unpredicted": lost_last, "designs_without_fine_drape": lost_designs, **loss},
         "lost_total": lost_last + lost_designs + sum(loss.values()),
