@@ -16,6 +16,12 @@ A press made on another design than the newest this solver holds, and a
 prediction numbered above it, are ignored with a log line naming both
 generations and counted (``stale_edits``, ``foreign_edits``,
 ``foreign_predictions``).
+
+A solver pool (``--serve-session S``, repeatable): the node serves those
+design sessions, each with its own service, drape publishers and solve
+queryable, through one worker thread (one solve at a time); the members of
+the pool see each other in the node's own session and share the sessions out
+(:class:`PoolShare`). Without it the node serves its own session, as before.
 """
 
 from __future__ import annotations
