@@ -24,6 +24,7 @@ BUS_FACING = (
     "couture.client",
     "couture.supervisor",
     "couture.cli",
+    "couture.__main__",  # python -m couture: the CLI
     # benchmarks of the running system: they start nodes or time the bus
     "couture.bench.bus",
     "couture.bench.edit",
