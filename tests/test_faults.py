@@ -58,7 +58,7 @@ pytestmark = [pytest.mark.timeout(300), pytest.mark.slow]
 SMALL = Design(sloper=Sloper(kind="skirt"), resolution=Resolution(coarse_vertices=120, fine_vertices=300))
 CAP_BYTES = 1 << 20
 NODES = ["remesher", "solver-newton", "sensitivity", "ui", "recorder"]
-RESTART_DELAY_S = 2.0
+RESTART_DELAY_S = 3.0
 """the supervisor's first backoff: a killed node stays down at least this long"""
 RECOVERY: dict[str, dict[str, float]] = {}
 """node -> seconds from the kill to each recovery step (printed, never asserted)"""
@@ -235,7 +235,8 @@ def test_flood_of_garbage_on_every_topic_crashes_nothing(live):
     assert current >= 2  # generation 1 is stale
 
     with open_session(sup.child_bus, name="fuzzer") as bus:
-        pubs = {k: bus.publisher(concrete(k), topics.topic_spec(concrete(k)).msg_type) for k in keys}  # type: ignore[union-attr]
+        # the fuzzer blocks rather than drops (previews travel DROP): every payload arrives and is counted
+        pubs = {k: bus.publisher(concrete(k), topics.topic_spec(concrete(k)).msg_type, drop=False) for k in keys}  # type: ignore[union-attr]
         for k, p in pubs.items():
             assert p.wait_matching(10), f"nobody subscribes {k} (the recorder should)"
 
@@ -290,7 +291,7 @@ def test_flood_of_garbage_on_every_topic_crashes_nothing(live):
 
         rec = wait_for(f"the recorder to count {total} rejected", recorded_all, 60)
         assert rec.counters["rejected"] - c0["recorder"]["rejected"] == total  # none lost, none twice
-        # every other receiver counts exactly what it dropped, per topic (previews may be dropped on the way)
+        # every other receiver counts exactly what it dropped, per topic
         after = {n: fresh_status(client, n, time.time_ns()) for n in NODES}
         for node in ("remesher", "solver-newton", "sensitivity", "ui"):
             c1 = Counter(after[node].counters)
@@ -300,16 +301,13 @@ def test_flood_of_garbage_on_every_topic_crashes_nothing(live):
 
             for k in keys:
                 got = delta(f"bad/{k}")
-                if topics.topic_spec(concrete(k)).delivery.drop:  # type: ignore[union-attr]
-                    assert 0 <= got <= sent[k], (node, k, got)
-                else:
-                    assert got in (0, sent[k]), f"{node} counted {got} bad payloads on {k}, {sent[k]} were sent"
+                assert got in (0, sent[k]), f"{node} counted {got} bad payloads on {k}, {sent[k]} were sent"
             queries = delta(f"bad/solve/{node}")  # the solve queryable's
             assert queries == (len(BAD_QUERIES) if node == "solver-newton" else 0)
             assert delta("bad_messages") == sum(delta(f"bad/{k}") for k in keys) + queries
             assert delta("callback_errors") == 0, (node, after[node].last_error)
         ui = Counter(after["ui"].counters)
-        for k in ("pattern", "edit", "mesh/coarse", "mesh/fine", "drape/coarse", "drape/fine", "status/*", "rejected"):
+        for k in keys[:-2]:  # every topic but the solve mirrors, which only the recorder hears
             assert ui[f"bad/{k}"] - c0["ui"][f"bad/{k}"] == sent[k], k  # the ui listens to all of these
         for node in ("remesher", "solver-newton"):  # both judge every press
             assert after[node].counters.get("stale_edits", 0) - c0[node]["stale_edits"] == stale, node
@@ -394,10 +392,9 @@ def test_kill_9_mid_drag(live, node):
             30,
         )
 
-    # it resumes: a new gesture is predicted, a new design drapes and is shown
-    press2, _ = drag(client, timeout=90)
-    steps["next prediction"] = time.monotonic() - t_kill
-    client.send_edit("param:length", [0.0, 0.0], phase="release", edit_id=press2.edit_id)
+    # it resumes: the released design drapes and is shown (the ui publishes the
+    # design on release; a solver drapes no mesh that came during a drag), then
+    # the next gesture is predicted
     length = 0.5 + 0.01 * NODES.index(node)
     gen = client.publish_pattern(
         msgspec.structs.replace(SMALL, sloper=Sloper(kind="skirt", params={"length": length})), name=f"after-{node}"
@@ -409,6 +406,9 @@ def test_kill_9_mid_drag(live, node):
         lambda: (s := client.status.get("ui")) is not None and f"generation {fine.generation}" in s.shown,
         60,
     )
+    press2, _ = drag(client, timeout=90)
+    steps["next prediction"] = time.monotonic() - t_kill
+    client.send_edit("param:length", [0.0, 0.0], phase="release", edit_id=press2.edit_id)
     status = fresh_status(client, node, time.time_ns(), timeout=30)
     assert status.pid == new and status.counters.get("callback_errors", 0) == 0, status.last_error
     if node == "recorder":  # the new recorder writes the next part of the same recording
