@@ -318,6 +318,14 @@ class StatusMsg(Message, kw_only=True):
     linearisation, in words ('none', or the bending or shift added, why, and
     its measured effect); '' when not applicable. An optional field added
     within v1: older readers ignore it"""
+    nodes: dict[str, bool] = {}
+    """the session's nodes as this node sees them by liveliness, name -> alive
+    now (the ui: the list on its page, where a dead node stays listed as
+    dead); {} from a node that does not watch them"""
+    shown: str = ""
+    """what a ui node has on screen, in the words of its status panel
+    ('fine solve by solver-newton (newton), residual 3e-05, converged,
+    generation 2'); '' elsewhere or before the first drape"""
 
 
 class RejectedMsg(Message, kw_only=True):

@@ -14,6 +14,7 @@ subscribers, which is why each request and result is mirrored on
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 from schemas.messages import (
@@ -23,10 +24,17 @@ from schemas.messages import (
     Message,
     PatternMsg,
     RejectedMsg,
+    SchemaError,
     SolveRequestMsg,
     SolveResultMsg,
     StatusMsg,
 )
+
+MiB = 1 << 20
+
+MAX_BYTES_ENV = "COUTURE_MAX_MESSAGE_BYTES"
+"""a site-wide cap [bytes] on every topic's ``max_bytes`` (the smaller wins);
+unset or 0: the table's limits alone"""
 
 
 @dataclass(frozen=True)
@@ -78,6 +86,11 @@ class Topic:
     """an output: compare checks it against a golden recording"""
     publisher: str
     """who publishes it (documentation)"""
+    max_bytes: int = MiB
+    """[bytes] the largest payload a receiver accepts; a larger one is dropped
+    unread and counted (a flood of huge payloads must not stall a node). The
+    mesh-sized topics allow a mesh at the largest target size (250k vertices:
+    about 35 MB with Ψ), with room to spare."""
 
 
 TOPICS: tuple[Topic, ...] = (
@@ -90,13 +103,68 @@ TOPICS: tuple[Topic, ...] = (
         replayed=True,
         compared=False,
         publisher="ui, scripts, sensitivity (3D tug)",
+        max_bytes=8 * MiB,
     ),
-    Topic("edit", EditMsg, EXPRESS, recorded=True, replayed=True, compared=False, publisher="ui, scripts"),
-    Topic("mesh/coarse", MeshMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="remesher"),
-    Topic("mesh/fine", MeshMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="remesher"),
-    Topic("drape/predicted", DrapeMsg, PREVIEW, recorded=True, replayed=False, compared=True, publisher="sensitivity"),
-    Topic("drape/coarse", DrapeMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="solver"),
-    Topic("drape/fine", DrapeMsg, HISTORY, recorded=True, replayed=False, compared=True, publisher="solver"),
+    Topic(
+        "edit",
+        EditMsg,
+        EXPRESS,
+        recorded=True,
+        replayed=True,
+        compared=False,
+        publisher="ui, scripts",
+        max_bytes=64 << 10,
+    ),
+    Topic(
+        "mesh/coarse",
+        MeshMsg,
+        HISTORY,
+        recorded=True,
+        replayed=False,
+        compared=True,
+        publisher="remesher",
+        max_bytes=128 * MiB,
+    ),
+    Topic(
+        "mesh/fine",
+        MeshMsg,
+        HISTORY,
+        recorded=True,
+        replayed=False,
+        compared=True,
+        publisher="remesher",
+        max_bytes=128 * MiB,
+    ),
+    Topic(
+        "drape/predicted",
+        DrapeMsg,
+        PREVIEW,
+        recorded=True,
+        replayed=False,
+        compared=True,
+        publisher="sensitivity",
+        max_bytes=32 * MiB,
+    ),
+    Topic(
+        "drape/coarse",
+        DrapeMsg,
+        HISTORY,
+        recorded=True,
+        replayed=False,
+        compared=True,
+        publisher="solver",
+        max_bytes=32 * MiB,
+    ),
+    Topic(
+        "drape/fine",
+        DrapeMsg,
+        HISTORY,
+        recorded=True,
+        replayed=False,
+        compared=True,
+        publisher="solver",
+        max_bytes=32 * MiB,
+    ),
     Topic("status/*", StatusMsg, PLAIN, recorded=True, replayed=False, compared=False, publisher="every node"),
     # Sent at once (a client waiting for that design's drape stops waiting), and
     # kept like the patterns, so a late joiner learns which recent designs were refused.
@@ -117,8 +185,18 @@ TOPICS: tuple[Topic, ...] = (
         replayed=False,
         compared=False,
         publisher="any solve client",
+        max_bytes=128 * MiB,
     ),
-    Topic("solve/result/*", SolveResultMsg, PLAIN, recorded=True, replayed=False, compared=True, publisher="solver"),
+    Topic(
+        "solve/result/*",
+        SolveResultMsg,
+        PLAIN,
+        recorded=True,
+        replayed=False,
+        compared=True,
+        publisher="solver",
+        max_bytes=32 * MiB,
+    ),
 )
 """The topic table. Readers look it up at call time (``schemas.topics.TOPICS``),
 so a test may extend it."""
@@ -169,6 +247,30 @@ def type_for_keyexpr(keyexpr: str) -> type[Message] | None:
     when it covers several types (or none): then each sample's own key decides."""
     types = {t.msg_type for t in topics_matching(keyexpr)}
     return types.pop() if len(types) == 1 else None
+
+
+def max_bytes_for(topic: str) -> int:
+    """[bytes] the largest payload accepted on a relative key: the table's
+    ``max_bytes`` (keys outside the table: 1 MiB), capped by
+    ``$COUTURE_MAX_MESSAGE_BYTES`` when set."""
+    t = topic_spec(topic)
+    limit = t.max_bytes if t else MiB
+    cap = os.environ.get(MAX_BYTES_ENV, "")
+    if cap.strip():
+        try:
+            n = int(cap)
+        except ValueError:
+            raise ValueError(f"${MAX_BYTES_ENV} must be a whole number of bytes, got {cap!r}") from None
+        if n > 0:
+            limit = min(limit, n)
+    return limit
+
+
+def check_size(topic: str, nbytes: int) -> None:
+    """Raise SchemaError when a payload of ``nbytes`` is above the limit of ``topic``."""
+    limit = max_bytes_for(topic)
+    if nbytes > limit:
+        raise SchemaError(f"oversized payload on {topic}: {nbytes} bytes, the limit is {limit} bytes")
 
 
 def delivery_for(topic: str) -> Delivery:
@@ -228,6 +330,9 @@ __all__ = [
     "type_for_topic",
     "type_for_keyexpr",
     "delivery_for",
+    "max_bytes_for",
+    "check_size",
+    "MAX_BYTES_ENV",
     "history_for_subscription",
     "is_recorded",
     "replayed_topics",

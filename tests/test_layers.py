@@ -30,6 +30,7 @@ BUS_FACING = (
     "couture.bench.edit",
     "couture.bench.ui",
     "couture.bench.drape",
+    "couture.bench.load",
 )
 """library modules (and packages) that may talk to Zenoh"""
 

@@ -15,7 +15,7 @@ import os
 import signal
 import threading
 import time
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 from couture.bus.session import Bus, BusConfig, open_session
 from schemas.messages import StatusMsg
@@ -104,6 +104,8 @@ class Node:
         self.readiness: Callable[[], Readiness] | None = None
         """what the status reports as ready: returns an object with ``ready``,
         ``generation`` and ``mesh_generation`` (None: always ready)"""
+        self.status_fields: Callable[[], dict[str, Any]] | None = None
+        """more :class:`StatusMsg` fields this node fills (the ui: ``nodes``, ``shown``)"""
 
     @property
     def bus(self) -> Bus:
@@ -193,6 +195,7 @@ class Node:
             ready_generation=-1 if r is None else int(r.generation),
             ready_mesh_generation=-1 if r is None else int(r.mesh_generation),
             regularization=str(getattr(r, "regularization", "")),
+            **(self.status_fields() if self.status_fields is not None else {}),
         )
 
     def publish_status(self) -> None:

@@ -306,6 +306,8 @@ class Bus:
         self._closeables: list[Any] = []
         self._workers: list[threading.Thread] = []
         self._closed = threading.Event()
+        self._bad_keys: set[str] = set()
+        """keys a bad message was logged for (later ones are only counted)"""
 
     # -- keys
     def key(self, topic: str) -> str:
@@ -338,7 +340,8 @@ class Bus:
 
         The expected type defaults to the type the topic carries. A payload that
         fails validation is logged with key and reason, counted as
-        ``bad_messages`` and dropped; a callback exception is logged, counted as
+        ``bad_messages`` (and ``bad/<table key>``, e.g. ``bad/status/*``) and
+        dropped, as is a payload above the topic's ``max_bytes``; a callback exception is logged, counted as
         ``callback_errors`` and never propagates into Zenoh.
 
         Callbacks run on a Zenoh thread: hand long work to a worker thread.
@@ -350,12 +353,19 @@ class Bus:
             key = str(sample.key_expr)
             rel = self.topic_of(key)
             try:
+                data = sample.payload.to_bytes()
+                topics.check_size(rel, len(data))  # a huge payload is dropped unread
                 want = expected or topics.type_for_topic(rel)
-                msg = decode(sample.payload.to_bytes(), want)
+                msg = decode(data, want)
             except SchemaError as e:
                 self.stats.count("bad_messages")
+                spec = topics.topic_spec(rel)
+                self.stats.count(f"bad/{spec.key if spec else rel}")
                 self.stats.error(f"bad message on {key}: {e}")
-                log.warning("dropped bad message on %s: %s", key, e)
+                # a flood must not flood the log too: the first per key is a warning, the rest are counted
+                first = key not in self._bad_keys
+                self._bad_keys.add(key)
+                log.log(logging.WARNING if first else logging.DEBUG, "dropped bad message on %s: %s", key, e)
                 return
             self.stats.count(f"recv/{rel}")
             try:
@@ -466,9 +476,11 @@ class Bus:
                 try:
                     payload = query.payload.to_bytes() if query.payload is not None else b""
                     try:
+                        topics.check_size("solve/request", len(payload))
                         req = decode(payload, SolveRequestMsg)
                     except SchemaError as e:
                         self.stats.count("bad_messages")
+                        self.stats.count(f"bad/solve/{solver}")
                         self.stats.error(f"bad solve request: {e}")
                         query.reply_err(str(e).encode())
                         continue

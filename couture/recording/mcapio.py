@@ -81,6 +81,7 @@ def check_payload(topic: str, data: bytes) -> str:
     ``topic`` (any known type for a key outside the table), else the reason
     (names the schema and the field)."""
     try:
+        topic_table.check_size(topic, len(data))
         decode(data, topic_table.type_for_topic(topic))
     except SchemaError as e:
         return str(e)

@@ -190,7 +190,11 @@ def main(config: Config) -> None:
             return False
 
         def on_drape(msg: DrapeMsg) -> None:
-            if observe(f"drape/{msg.level} from {msg.solver or 'an unnamed node'}", msg.generation):
+            # a drape names its mesh too: after a restart the predecessor's meshes are gone with
+            # its publisher's history, the solver's drapes are not, and new meshes must number above them
+            if observe(
+                f"drape/{msg.level} from {msg.solver or 'an unnamed node'}", msg.generation, msg.mesh_generation
+            ):
                 if msg.level in ("coarse", "fine"):
                     service.note_drape(msg.level, msg.mesh_generation, msg.x.numpy())
 

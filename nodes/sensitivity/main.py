@@ -111,8 +111,10 @@ def main(config: Config) -> None:
             if msg.psi is not None and msg.psi_edit_id:
                 psi = msg.psi.numpy().copy()
                 edits.submit("press", lambda: press_columns(msg.psi_edit_id, psi))
-                if msg.unchanged:
-                    return
+            # an unchanged mesh (re-sent to carry Ψ) is a repeat of the one held, but a node
+            # restarted after a press gets it as the remesher's last mesh: its only mesh to take
+            if msg.unchanged and msg.mesh_generation == service.mesh_generation:
+                return
             out = service.offer_mesh(msg.generation, msg.mesh_generation, msg_to_mesh(msg), msg.design_id)
             if out.status == "stale":
                 node.count("stale_meshes")

@@ -18,6 +18,14 @@ if __name__ == "__main__":
         choices=["pardiso", "pardiso32", "cholmod", "splu"],
         help="direct linear-solver backend (default: $COUTURE_SOLVER_BACKEND, else the solver's own)",
     )
+    p.add_argument(
+        "--serve-session",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="serve this design session as a member of a solver pool (repeatable; every member gets the same "
+        "list in the same order); --session is then the pool's own session, where members find each other",
+    )
     a = p.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s solver %(levelname)s %(message)s")
     main(
@@ -26,6 +34,7 @@ if __name__ == "__main__":
             name=a.name,
             solver=a.solver,
             max_seconds=a.max_seconds,
+            sessions=a.serve_session,
             **({"backend": a.backend} if a.backend else {}),
         )
     )

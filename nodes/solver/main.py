@@ -16,6 +16,12 @@ A press made on another design than the newest this solver holds, and a
 prediction numbered above it, are ignored with a log line naming both
 generations and counted (``stale_edits``, ``foreign_edits``,
 ``foreign_predictions``).
+
+A solver pool (``--serve-session S``, repeatable): the node serves those
+design sessions, each with its own service, drape publishers and solve
+queryable, through one worker thread (one solve at a time); the members of
+the pool see each other in the node's own session and share the sessions out
+(:class:`PoolShare`). Without it the node serves its own session, as before.
 """
 
 from __future__ import annotations
@@ -23,11 +29,13 @@ from __future__ import annotations
 import logging
 import os
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import partial
+from typing import Callable
 
 import numpy as np
 
-from couture.bus import BusConfig, Node
+from couture.bus import Bus, BusConfig, Node, open_session
 from couture.bus.worker import LatestWorker
 from couture.cloth.model import ClothModel
 from couture.designs import Matched
@@ -61,6 +69,11 @@ class Config:
     'pardiso32', 'cholmod', 'splu'); '' keeps the solver's own choice ('auto').
     Defaults to $COUTURE_SOLVER_BACKEND, so a test can run every solver node of a
     session on SuperLU without a flag per node."""
+    sessions: list[str] = field(default_factory=list)
+    """design sessions this node serves as a member of a solver pool ([]: its
+    own session alone). With sessions, the node's own session is the pool's:
+    its members see each other there (liveliness) and share the sessions out
+    (:class:`PoolShare`); each session sees the member's drapes under its name."""
 
 
 def solver_options(config: Config) -> dict:
@@ -70,7 +83,7 @@ def solver_options(config: Config) -> dict:
     return {}
 
 
-def main(config: Config) -> None:
+def make_service(config: Config) -> SolveService:
     service = SolveService(method=config.solver)
     if solver_options(config):
         # SolveService builds its solver with defaults; a backend chosen for this
@@ -79,189 +92,280 @@ def main(config: Config) -> None:
         log.info("%s solver on the %r backend", config.solver, config.backend)
     if config.max_seconds is not None:
         service.max_seconds = {level: float(config.max_seconds) for level in service.max_seconds}
+    return service
+
+
+@dataclass
+class Served:
+    """One design session a solver node serves."""
+
+    resubmit: Callable[[], None]
+    """queue a solve of the session's current design (a pool member that took the session over)"""
+    abort: Callable[[], None]
+
+
+class PoolShare:
+    """Which of the served sessions a pool member solves: the i-th session (in
+    the order every member is given) goes to the (i mod k)-th of the k live
+    members, by name. Members are the live ``solver*`` nodes of the pool's
+    own session; when one dies its sessions pass to the others."""
+
+    def __init__(self, me: str, sessions: list[str]) -> None:
+        self.me, self.sessions = me, list(sessions)
+        self.members = {me}
+        self._lock = threading.Lock()
+
+    def owns(self, session: str) -> bool:
+        with self._lock:
+            members = sorted(self.members)
+        return members[self.sessions.index(session) % len(members)] == self.me
+
+    def update(self, node: str, alive: bool) -> list[str]:
+        """A member came or went: the sessions this member owns now and did not before."""
+        if not node.startswith("solver") or node == self.me:
+            return []
+        before = {s for s in self.sessions if self.owns(s)}
+        with self._lock:
+            if alive:
+                self.members.add(node)
+            else:
+                self.members.discard(node)
+        return [s for s in self.sessions if self.owns(s) and s not in before]
+
+
+def main(config: Config) -> None:
     with Node(config.name, config.bus, kind="solver") as node:
-        bus = node.bus
-        pubs = {lv: bus.publisher(f"drape/{lv}", DrapeMsg) for lv in ("coarse", "fine")}
-        rejected_pub = bus.publisher("rejected", RejectedMsg)
         worker = LatestWorker("solve", on_error=node.error)
-        lock = threading.Lock()
-        state: dict = {"gesture": "", "dragging": False, "abort": False}
+        extra: list[Bus] = []
+        served: list[Served] = []
+        try:
+            if not config.sessions:
+                served.append(serve(node.bus, node, config, worker))
+            else:
+                share = PoolShare(config.name, config.sessions)
+                by_session: dict[str, Served] = {}
+                for s in config.sessions:
+                    b = open_session(replace(config.bus, session=s), name=config.name)
+                    extra.append(b)
+                    b.stats = node.bus.stats  # one status counts for every session served
+                    b.declare_token(config.name)
+                    by_session[s] = serve(b, node, config, worker, slot=f"{s}:", owns=partial(share.owns, s))
+                served = list(by_session.values())
 
-        def drape_msg(
-            level: str,
-            x: np.ndarray,
-            res: float,
-            it: int,
-            wall: float,
-            converged: bool = False,
-            diagnosis: str = "",
-            final: bool = True,
-        ) -> DrapeMsg:
-            lm = service.levels[level]
-            return DrapeMsg(
-                level=level,
-                x=x.astype(np.float32),
-                residual=float(res),
-                iterations=int(it),
-                solver=config.name,
-                method=config.solver,
-                wall_time_s=float(wall),
-                converged=converged,
-                diagnosis=diagnosis,
-                generation=lm.mesh.generation,
-                mesh_generation=lm.mesh_generation,
-                final=final,
-            )
+                def on_member(name: str, alive: bool) -> None:
+                    for s in share.update(name, alive):
+                        log.info(
+                            "pool member %s %s: this member now solves session %s", name, "up" if alive else "gone", s
+                        )
+                        by_session[s].resubmit()
 
-        def should_abort() -> bool:
-            return state["abort"] or node.stopping
+                node.bus.watch_nodes(on_member)
+                log.info("solver pool member %s serving sessions %s", config.name, ", ".join(config.sessions))
+            node.run()
+        finally:
+            for sv in served:
+                sv.abort()
+            worker.close()
+            for b in extra:
+                b.close()
 
-        def on_progress(level: str, it: int, x: np.ndarray, res: float) -> None:
-            pubs[level].put(drape_msg(level, x, res, it, 0.0, final=False))
 
-        def on_level(run: LevelRun) -> None:
-            r = run.result
-            pubs[run.level].put(
-                drape_msg(run.level, r.x, r.residual, r.iterations, r.wall_time, r.converged, r.diagnosis)
-            )
-            node.count(f"solves/{run.level}")
-            log.info(
-                "gen %d %s: residual %.2e after %d its in %.2f s (%s, from %s)%s",
-                service.levels[run.level].mesh.generation,
-                run.level,
-                r.residual,
-                r.iterations,
-                r.wall_time,
-                config.solver,
-                run.warm_start,
-                f" [{r.diagnosis}]" if r.diagnosis else "",
-            )
-            if r.diagnosis and not r.converged and "abort" not in r.diagnosis.lower():
-                node.error(f"{run.level}: {r.diagnosis}")
+def serve(
+    bus: Bus,
+    node: Node,
+    config: Config,
+    worker: LatestWorker,
+    *,
+    slot: str = "",
+    owns: Callable[[], bool] = lambda: True,
+) -> Served:
+    """Solve one session's designs on ``bus``: drapes, rejections, the solve queryable.
+    ``slot`` prefixes this session's jobs on the shared worker; ``owns()`` says
+    whether this node solves the session now (a pool shares sessions out)."""
+    service = make_service(config)
+    pubs = {lv: bus.publisher(f"drape/{lv}", DrapeMsg) for lv in ("coarse", "fine")}
+    rejected_pub = bus.publisher("rejected", RejectedMsg)
+    lock = threading.Lock()
+    state: dict = {"gesture": "", "dragging": False, "abort": False}
 
-        def solve_job() -> None:
-            with lock:
-                if state["dragging"] or not service.ready():
-                    return
-                state["abort"] = False
-            service.run(
-                should_abort=should_abort,
-                on_progress=on_progress,
-                on_level=on_level,
-                progress_period_s=config.progress_period_s,
-            )
+    def drape_msg(
+        level: str,
+        x: np.ndarray,
+        res: float,
+        it: int,
+        wall: float,
+        converged: bool = False,
+        diagnosis: str = "",
+        final: bool = True,
+    ) -> DrapeMsg:
+        lm = service.levels[level]
+        return DrapeMsg(
+            level=level,
+            x=x.astype(np.float32),
+            residual=float(res),
+            iterations=int(it),
+            solver=config.name,
+            method=config.solver,
+            wall_time_s=float(wall),
+            converged=converged,
+            diagnosis=diagnosis,
+            generation=lm.mesh.generation,
+            mesh_generation=lm.mesh_generation,
+            final=final,
+        )
 
-        def take(matched: Matched[IncomingMesh]) -> None:
-            try:
-                ready = service.take(matched)
-            except PatternError as e:
-                m = matched.mesh
-                node.count("bad_designs")
-                node.error(f"mesh/{m.level} of generation {m.generation} (design {m.design_id or '?'}) rejected: {e}")
-                rejected_pub.put(
-                    RejectedMsg(
-                        node=config.name,
-                        generation=m.generation,
-                        design_id=m.design_id,
-                        element=e.element,
-                        reason=str(e),
-                    )
+    def should_abort() -> bool:
+        return state["abort"] or node.stopping
+
+    def on_progress(level: str, it: int, x: np.ndarray, res: float) -> None:
+        pubs[level].put(drape_msg(level, x, res, it, 0.0, final=False))
+
+    def on_level(run: LevelRun) -> None:
+        r = run.result
+        pubs[run.level].put(drape_msg(run.level, r.x, r.residual, r.iterations, r.wall_time, r.converged, r.diagnosis))
+        node.count(f"solves/{run.level}")
+        log.info(
+            "gen %d %s: residual %.2e after %d its in %.2f s (%s, from %s)%s",
+            service.levels[run.level].mesh.generation,
+            run.level,
+            r.residual,
+            r.iterations,
+            r.wall_time,
+            config.solver,
+            run.warm_start,
+            f" [{r.diagnosis}]" if r.diagnosis else "",
+        )
+        if r.diagnosis and not r.converged and "abort" not in r.diagnosis.lower():
+            node.error(f"{run.level}: {r.diagnosis}")
+
+    def solve_job() -> None:
+        if not owns():
+            return  # another member of the pool solves this session
+        with lock:
+            if state["dragging"] or not service.ready():
+                return
+            state["abort"] = False
+        service.run(
+            should_abort=should_abort,
+            on_progress=on_progress,
+            on_level=on_level,
+            progress_period_s=config.progress_period_s,
+        )
+
+    def take(matched: Matched[IncomingMesh]) -> None:
+        try:
+            ready = service.take(matched)
+        except PatternError as e:
+            m = matched.mesh
+            node.count("bad_designs")
+            node.error(f"mesh/{m.level} of generation {m.generation} (design {m.design_id or '?'}) rejected: {e}")
+            rejected_pub.put(
+                RejectedMsg(
+                    node=config.name,
+                    generation=m.generation,
+                    design_id=m.design_id,
+                    element=e.element,
+                    reason=str(e),
                 )
-                return
-            if ready:
-                worker.submit("solve", solve_job)
-
-        def on_pattern(msg: PatternMsg) -> None:
-            for m in service.offer_design(msg.generation, msg.design, msg.identity()):
-                worker.submit(f"mesh/{m.mesh.level}", lambda m=m: take(m))
-
-        def on_mesh(msg: MeshMsg) -> None:
-            if msg.unchanged:
-                return  # the mesh already held, re-sent to carry Ψ
-            prolong = None
-            if msg.fine_parent_tri is not None and msg.fine_bary is not None:
-                prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
-            out = service.offer_mesh(
-                msg.level, msg.generation, msg.mesh_generation, IncomingMesh(msg_to_mesh(msg), prolong), msg.design_id
             )
-            if out.status == "stale":
-                node.count("stale_meshes")
-            matched = out.matched
-            if matched is None:
-                return
-            state["abort"] = True  # a new mesh supersedes the running solve
-            worker.submit(f"mesh/{msg.level}", lambda: take(matched))
+            return
+        if ready:
+            worker.submit(f"{slot}solve", solve_job)
 
-        def on_edit(msg: EditMsg) -> None:
-            if msg.phase == "press":
-                verdict = service.judge_edit(msg.generation)
-                if verdict != "current":
-                    node.count(f"{verdict}_edits")
-                    log.warning(
-                        "edit %s: press on generation %d, this solver's design is %d (%s): ignored",
-                        msg.edit_id,
-                        msg.generation,
-                        service.generation,
-                        verdict,
-                    )
-                    return
-                state["gesture"] = msg.edit_id
-                state["dragging"] = True
-                state["abort"] = True
-            elif msg.phase == "release" and msg.edit_id == state["gesture"]:
-                state["dragging"] = False
+    def on_pattern(msg: PatternMsg) -> None:
+        for m in service.offer_design(msg.generation, msg.design, msg.identity()):
+            worker.submit(f"{slot}mesh/{m.mesh.level}", lambda m=m: take(m))
 
-        def on_prediction(msg: DrapeMsg) -> None:
-            # a prediction lives on a mesh this solver matched (the release's is
-            # the warm start of the next design's mesh, numbered later)
-            if service.judge_edit(msg.generation) == "foreign":
-                node.count("foreign_predictions")
+    def on_mesh(msg: MeshMsg) -> None:
+        # an unchanged mesh (re-sent to carry Ψ) is a repeat of the one held, dropped by the
+        # matcher; a solver restarted after a press gets it as the remesher's last mesh
+        held = service.levels.get(msg.level)
+        if msg.unchanged and held is not None and held.mesh_generation == msg.mesh_generation:
+            return
+        prolong = None
+        if msg.fine_parent_tri is not None and msg.fine_bary is not None:
+            prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
+        out = service.offer_mesh(
+            msg.level, msg.generation, msg.mesh_generation, IncomingMesh(msg_to_mesh(msg), prolong), msg.design_id
+        )
+        if out.status == "stale":
+            node.count("stale_meshes")
+        matched = out.matched
+        if matched is None:
+            return
+        state["abort"] = True  # a new mesh supersedes the running solve
+        worker.submit(f"{slot}mesh/{msg.level}", lambda: take(matched))
+
+    def on_edit(msg: EditMsg) -> None:
+        if msg.phase == "press":
+            verdict = service.judge_edit(msg.generation)
+            if verdict != "current":
+                node.count(f"{verdict}_edits")
                 log.warning(
-                    "prediction for edit %s of generation %d ignored: this solver's newest design is %d",
+                    "edit %s: press on generation %d, this solver's design is %d (%s): ignored",
                     msg.edit_id,
                     msg.generation,
                     service.generation,
+                    verdict,
                 )
                 return
-            service.set_prediction(msg.mesh_level, msg.mesh_generation, msg.x.numpy())
-
-        def handle_solve(req: SolveRequestMsg) -> SolveResultMsg:
-            design = req.design or service.design
-            if design is None:
-                raise RuntimeError("request has no design and this solver has seen no pattern")
-            check_simulation_values(design)  # PatternError naming the field: the result's error
-            if req.mesh is not None:
-                mesh = msg_to_mesh(req.mesh)
-            else:
-                lm = service.levels.get(req.level)
-                if lm is None or lm.mesh_generation != req.mesh_generation:
-                    raise RuntimeError(f"no {req.level} mesh of mesh_generation {req.mesh_generation} here")
-                mesh = lm.mesh
-            model = ClothModel(mesh, design.fabric, scene_from_design(design))
-            x0 = req.x_warm.numpy() if req.x_warm is not None else mesh.x0
-            r = get_solver(config.solver, **solver_options(config)).solve(
-                model, np.array(x0), tol=req.tol, max_iters=req.max_iters, max_seconds=req.max_seconds
-            )
-            return SolveResultMsg(
-                method=config.solver,
-                level=req.level,
-                mesh_generation=req.mesh_generation,
-                x=r.x,
-                residual=r.residual,
-                iterations=r.iterations,
-                wall_time_s=r.wall_time,
-                converged=r.converged,
-                diagnosis=r.diagnosis,
-            )
-
-        bus.subscribe("pattern", on_pattern)
-        bus.subscribe("mesh/coarse", on_mesh)
-        bus.subscribe("mesh/fine", on_mesh)
-        bus.subscribe("edit", on_edit)
-        bus.subscribe("drape/predicted", on_prediction)
-        bus.serve_solve(config.name, handle_solve)
-        try:
-            node.run()
-        finally:
+            state["gesture"] = msg.edit_id
+            state["dragging"] = True
             state["abort"] = True
-            worker.close()
+        elif msg.phase == "release" and msg.edit_id == state["gesture"]:
+            state["dragging"] = False
+
+    def on_prediction(msg: DrapeMsg) -> None:
+        # a prediction lives on a mesh this solver matched (the release's is
+        # the warm start of the next design's mesh, numbered later)
+        if service.judge_edit(msg.generation) == "foreign":
+            node.count("foreign_predictions")
+            log.warning(
+                "prediction for edit %s of generation %d ignored: this solver's newest design is %d",
+                msg.edit_id,
+                msg.generation,
+                service.generation,
+            )
+            return
+        service.set_prediction(msg.mesh_level, msg.mesh_generation, msg.x.numpy())
+
+    def handle_solve(req: SolveRequestMsg) -> SolveResultMsg:
+        design = req.design or service.design
+        if design is None:
+            raise RuntimeError("request has no design and this solver has seen no pattern")
+        check_simulation_values(design)  # PatternError naming the field: the result's error
+        if req.mesh is not None:
+            mesh = msg_to_mesh(req.mesh)
+        else:
+            lm = service.levels.get(req.level)
+            if lm is None or lm.mesh_generation != req.mesh_generation:
+                raise RuntimeError(f"no {req.level} mesh of mesh_generation {req.mesh_generation} here")
+            mesh = lm.mesh
+        model = ClothModel(mesh, design.fabric, scene_from_design(design))
+        x0 = req.x_warm.numpy() if req.x_warm is not None else mesh.x0
+        r = get_solver(config.solver, **solver_options(config)).solve(
+            model, np.array(x0), tol=req.tol, max_iters=req.max_iters, max_seconds=req.max_seconds
+        )
+        return SolveResultMsg(
+            method=config.solver,
+            level=req.level,
+            mesh_generation=req.mesh_generation,
+            x=r.x,
+            residual=r.residual,
+            iterations=r.iterations,
+            wall_time_s=r.wall_time,
+            converged=r.converged,
+            diagnosis=r.diagnosis,
+        )
+
+    bus.subscribe("pattern", on_pattern)
+    bus.subscribe("mesh/coarse", on_mesh)
+    bus.subscribe("mesh/fine", on_mesh)
+    bus.subscribe("edit", on_edit)
+    bus.subscribe("drape/predicted", on_prediction)
+    bus.serve_solve(config.name, handle_solve)
+
+    def abort() -> None:
+        state["abort"] = True
+
+    return Served(resubmit=lambda: worker.submit(f"{slot}solve", solve_job), abort=abort)

@@ -39,6 +39,7 @@ from couture.bus import BusConfig, Node
 from couture.designs import ShownDesign, judge
 from couture.ui import CoutureUI, UIConfig
 from couture.ui.gestures import Edit
+from couture.ui.status import describe_frame
 from schemas.arrays import Array
 from schemas.convert import msg_to_mesh
 from schemas.design import Design
@@ -113,6 +114,13 @@ class UIAdapter:
         bus.subscribe("rejected", self.on_rejected)
         bus.watch_nodes(self.on_liveliness)
         self._update_notes()
+        node.status_fields = self.status_view
+
+    def status_view(self) -> dict[str, object]:
+        """What this node's status says it shows: the nodes it lists (alive or
+        dead) and the drape on screen."""
+        frame = self.ui.on_screen
+        return {"nodes": dict(self.live), "shown": describe_frame(frame) if frame is not None else ""}
 
     # -- out
     def publish_design(self, design: Design) -> None:
