@@ -176,8 +176,11 @@ def main(config: Config) -> None:
                 worker.submit(f"mesh/{m.mesh.level}", lambda m=m: take(m))
 
         def on_mesh(msg: MeshMsg) -> None:
-            if msg.unchanged:
+            held = service.levels.get(msg.level)
+            if msg.unchanged and held is not None and held.mesh_generation >= msg.mesh_generation:
                 return  # the mesh already held, re-sent to carry Ψ
+            # (a solver that never held it, restarted mid-drag, gets the Ψ re-send as the
+            # topic's history: the newest copy of the current mesh, which it takes)
             prolong = None
             if msg.fine_parent_tri is not None and msg.fine_bary is not None:
                 prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
