@@ -286,6 +286,24 @@ def test_golden_is_portable(env, tmp_path, monkeypatch):
 
 @pytest.mark.slow
 @pytest.mark.timeout(600)
+@pytest.mark.parametrize("name", ["solver_killed_mid_drag", "pattern_drag_and_tug"])
+def test_scripted_goldens_pass_on_superlu(name, tmp_path, monkeypatch):
+    """The scripted sessions under another factorization and one thread: the
+    coarse drapes move 20-31 mm along the frictionless skirt's soft mode
+    (inside the residual bound, under the 60 mm coarse cap), the fine drapes
+    and release predictions by hundredths of a mm; the restarted solver
+    re-drapes the current design the way the first one did (placement, then
+    the prolongation the remesher re-sends with Ψ), not into another of the
+    skirt's equilibria 100 mm away (measured before the prolongation was re-sent)."""
+    for k, v in {**ENVIRONMENTS["superlu"], **ENVIRONMENTS["1-thread"]}.items():
+        monkeypatch.setenv(k, v)
+    report = check(load_case(name), actual=tmp_path / f"{name}.mcap")
+    assert report.ok, report.text()
+    _assert_complete(report, name)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
 def test_a_physics_change_fails_naming_the_worst_vertex(tmp_path):
     """Bending x1.5 in every design (the fabric a designer would change) is a
     different drape: the comparison fails on the fine drapes and says where."""
