@@ -228,10 +228,28 @@ class Supervisor:
         c.restart_at = None
         log.info("started %s (pid %d): %s", c.spec.name, c.proc.pid, " ".join(cmd[1:3]))
 
+    def stop_node(self, name: str) -> None:
+        """Stop one child for good (SIGTERM, then SIGKILL after ``term_timeout_s``): not restarted."""
+        self._terminate([self.children[name]])
+
+    def start_node(self, spec: NodeSpec) -> None:
+        """Start one more child (a name already stopped is started afresh)."""
+        c = self.children[spec.name] = _Child(spec)
+        self._spawn(c)
+
+    def kill_node(self, name: str) -> int:
+        """SIGKILL one child's process group, as a crash would (it is restarted
+        after its backoff when its spec says so); returns the pid killed."""
+        proc = self.children[name].proc
+        if proc is None or proc.poll() is not None:
+            raise RuntimeError(f"node {name} is not running")
+        _signal_group(proc, signal.SIGKILL)
+        return proc.pid
+
     def poll(self) -> None:
         """Restart children that exited, after their backoff."""
         now = time.monotonic()
-        for c in self.children.values():
+        for c in list(self.children.values()):
             if c.proc is None:
                 continue
             code = c.proc.poll()

@@ -50,8 +50,50 @@ def test_linear_motions_are_reproduced_exactly(l_and_u, method):
     np.testing.assert_allclose(follow_pattern(c, d), r.mesh.X, atol=1e-13)  # reproduction
 
 
+def _floater_mvc(r, v: np.ndarray, panel: int, values: np.ndarray) -> np.ndarray:
+    """Floater's mean value interpolation at the point v of the boundary
+    ``values`` (one row per mesh vertex) of ``panel``'s loops (outline and
+    holes, signed angles), from the mesh's boundary polygons alone: a reference
+    that shares nothing with build_coordinates' matrix."""
+    num, den = 0.0, 0.0
+    for lp in r.panel_loops(panel):
+        P = r.mesh.X[lp.chain] - v
+        Q = np.roll(P, -1, axis=0)
+        ang = np.arctan2(P[:, 0] * Q[:, 1] - P[:, 1] * Q[:, 0], np.sum(P * Q, axis=1))
+        t = np.tan(ang / 2)
+        w = (np.roll(t, 1) + t) / np.linalg.norm(P, axis=1)
+        num = num + np.tensordot(w, values[lp.chain], axes=1)
+        den += w.sum()
+    return num / den
+
+
+def test_psi_interior_is_the_mean_value_interpolation_of_its_boundary(l_and_u):
+    """Inside, Ψ (plain MVC coordinates) is Floater's mean value
+    interpolation of its boundary rows, computed here from the boundary
+    polygons without the coordinates' matrix; the boundary rows are J itself
+    (test below). Both sides of the other Ψ tests go through the same matrix W,
+    so a wrong W would pass them: this one would fail."""
+    d, r, _, cm = l_and_u
+    rng = np.random.default_rng(5)
+    J = {
+        p.name: PanelJacobian(
+            rng.normal(size=(len(p.outline), 2, 2)), [rng.normal(size=(len(h), 2, 2)) for h in p.holes]
+        )
+        for p in d.panels
+    }
+    P = psi(cm, J)
+    assert np.abs(P[cm.interior]).max() > 0.1
+    for q in cm.interior[:: max(1, len(cm.interior) // 150)]:
+        want = _floater_mvc(r, r.mesh.X[q], int(r.vertex_panel[q]), P)
+        np.testing.assert_allclose(P[q], want, atol=1e-12)
+
+
 def test_psi_is_the_mesh_motion_of_the_moved_polylines(l_and_u):
-    """Ψ·Δd equals the mesh motion for polylines moved by J·Δd (the map is linear, so exactly)."""
+    """Ψ·Δd equals the mesh motion for polylines moved by J·Δd (the map is
+    linear, so exactly): psi() and follow_pattern() agree. Both go through the
+    same coordinates, so this is their consistency only; the values inside
+    are checked against an independent mean value interpolation above, the
+    boundary rows against J below."""
     d, r, cp, _ = l_and_u
     rng = np.random.default_rng(3)
     J = {

@@ -5,7 +5,6 @@ material length while cached samples are taken at 10 % and 20 %."""
 from __future__ import annotations
 
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -15,6 +14,10 @@ from couture.sensitivity import Predictor
 from couture.solvers import get_solver
 
 LENGTH = 0.8
+DYN_STEPS = 10
+"""kinetic-damping steps the dynamics baseline gets: about the predictor's on-line time"""
+DYN_ALIVE = 200
+"""steps after which the same baseline has converged (it is a working solver)"""
 
 
 def solve(model, x_start):
@@ -55,9 +58,7 @@ def test_fig5_error_order_dynamics_linear_gmls(fig5):
     p.set_equilibrium(model, x0)
     info = p.refactor()
     assert info.regularization == "none"  # the exact linearisation: no floor unless it must
-    t0 = time.perf_counter()
     S = p.press(psi)
-    press_s = time.perf_counter() - t0
     assert S.shape == (model.n, 3, 2) and np.abs(S).max() > 0.1
     dT = np.array([0.3 * LENGTH, 0.0])
     xT = truth(dT, x0)
@@ -71,11 +72,19 @@ def test_fig5_error_order_dynamics_linear_gmls(fig5):
     gm = p.drag(dT)
     assert gm.method == "gmls" and gm.samples == 3
 
-    # dynamics only: kinetic-damping steps from the old state within the
-    # predictor's on-line time (press + prediction; factorizations are idle time)
-    budget = press_s + gm.predict_s
+    # dynamics only: kinetic-damping steps from the old state. Given the
+    # predictor's on-line time (press + prediction, a few tens of ms) it had
+    # often taken no step and returned x0, so "worse than linear" could not
+    # fail. Here it gets a fixed number of steps instead (no timing): DYN_STEPS
+    # is about the predictor's on-line time (measured: press 23 ms + predict
+    # 4 ms; a kinetic step 2-5 ms on this 148-vertex strip), and the baseline
+    # is shown alive: given DYN_ALIVE steps it reaches the truth far below
+    # the GMLS error (measured: at 30 steps already 5e-3 m rms, below linear's
+    # 2.6e-2; at 100 steps 3e-11 m).
     mT = p.model_for(dT)
-    dyn = get_solver("kinetic").solve(mT, x0, tol=1e-12, max_seconds=budget)
+    e_still = rms(x0, xT)
+    dyn = get_solver("kinetic").solve(mT, x0, tol=1e-12, max_iters=DYN_STEPS)
+    alive = get_solver("kinetic").solve(mT, x0, tol=1e-12, max_iters=DYN_ALIVE)
 
     e_dyn, e_lin, e_gmls = rms(dyn.x, xT), rms(lin.x, xT), rms(gm.x, xT)
     # with the exact linearisation (no floor) the linear prediction is already
@@ -86,6 +95,7 @@ def test_fig5_error_order_dynamics_linear_gmls(fig5):
     # the force residuals at the edited rest shape are not distances to the truth
     # (both predictions push vertices into the sphere's contact layer: relative
     # residuals in the thousands for cm-level errors)
+    assert rms(alive.x, xT) < 1e-3 * e_gmls < e_still, (rms(alive.x, xT), e_gmls, e_still)
     assert np.isfinite(gm.error_estimate) and gm.residual_s > 0
 
     # the distance estimate (one chord-Newton correction) is computed; on this

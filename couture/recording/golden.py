@@ -11,12 +11,31 @@ A *case* is ``recordings/<case>.json``::
 
 Each entry of ``designs`` is a pattern file (relative to the case file or to
 ``couture/pattern/examples``) or a patch merged into the previous design.
+Instead of ``designs`` a case may give ``steps``, a scripted session driven
+through the bus (:mod:`couture.recording.steps`): designs, 2D drags of a
+pattern handle at pointer rate (press, drags, release, then the UI's commit),
+3D tugs on the hem, a solver switched mid-session, the solver SIGKILLed
+mid-drag and restarted by the supervisor. ``designs`` is the same as one
+design step per entry. The sensitivity node runs when there are gestures.
 
-``make`` starts the nodes with a recorder, publishes the designs one at a
-time, waiting for each one's final drape/fine, and keeps the recording as
+Predicted drapes depend on timing: how many predictions a gesture gets, and
+at which pointer positions, depends on how fast the sensitivity node keeps
+up with the pointer. So intermediate predictions are counted and reported,
+never matched; the *release prediction* of every gesture (made at the
+recorded release position, on the equilibrium of the design pressed on) must
+be there, within ``floor_m + prediction_safety * b`` of the golden's (b: the
+physics rule's bound on that generation's fine drape, at most the fine cap),
+and a tug's design (the sensitivity node's pattern) must carry the golden's
+parameters within ``tug_rtol`` (:func:`prediction_failures`). A check with a
+kill also fails when no prediction of the gesture arrived after the SIGKILL
+(a killed solver must not freeze the UI).
+
+``make`` starts the nodes with a recorder, runs the steps (each design
+waited for until its final drape/fine), and keeps the recording as
 ``recordings/<case>.mcap``. ``check`` starts the same nodes with a recorder,
-replays the golden file's inputs in lockstep (``couture replay --lockstep``)
-and compares the outputs with the golden ones, physics not paths
+replays the golden file's inputs in lockstep, step by step (the same solver
+switches and kills at the same points, gestures at their recorded pointer
+rate), and compares the outputs with the golden ones, physics not paths
 (:func:`rule`, STYLE.md): each final drape has the golden's convergence
 status, a converged one a residual within the solver node's tolerance, and
 every vertex within ``floor_m + safety * (r_golden + r_actual) * ||F_g|| /
@@ -40,6 +59,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import sys
 import tempfile
 import time
@@ -52,9 +72,7 @@ import msgspec
 
 from couture import supervisor
 from couture.bus import BusConfig
-from couture.recording.compare import CompareReport, PhysicsRule, compare
-from couture.recording.replay import ReplayConfig
-from couture.recording.replay import main as replay
+from couture.recording.compare import CompareReport, PhysicsRule, TopicReport, compare
 from schemas.design import Design
 
 log = logging.getLogger("couture.golden")
@@ -79,6 +97,29 @@ class Case:
     cap_m: dict[str, float] = field(default_factory=lambda: {"coarse": 0.03, "fine": 0.01})
     """level -> [m] never more than this (PhysicsRule.cap_m)"""
     timeout_s: float = 120.0
+    steps: list = field(default_factory=list)
+    """a scripted session (couture.recording.steps); empty: one design step per ``designs`` entry"""
+    prediction_safety: float = 2.0
+    """a gesture's release prediction may deviate ``floor_m`` + this times the
+    bound of the fine drape it was made on, at most the fine cap (:func:`prediction_failures`)"""
+    tug_rtol: float = 0.01
+    """a tug's design parameter within this relative deviation of the golden's (:func:`prediction_failures`)"""
+
+    def all_steps(self) -> list:
+        return self.steps or [{"design": d} for d in self.designs]
+
+    @property
+    def gestures(self) -> bool:
+        return any(next(iter(st)) in ("drag", "tug") for st in self.all_steps())
+
+    @property
+    def tugs(self) -> bool:
+        return any(next(iter(st)) == "tug" for st in self.all_steps())
+
+    @property
+    def n_designs(self) -> int:
+        """designs the session drapes (design, drag and tug steps)"""
+        return sum(next(iter(st)) != "switch_solver" for st in self.all_steps())
 
     @property
     def mcap(self) -> Path:
@@ -90,10 +131,27 @@ def load_case(name_or_path: str) -> Case:
     if not p.suffix:
         p = RECORDINGS / f"{name_or_path}.json"
     spec = json.loads(p.read_text())
-    keys = {"solvers", "designs", "rtol", "atol", "floor_m", "safety", "cap_m", "timeout_s"}
+    keys = {
+        "solvers",
+        "designs",
+        "steps",
+        "rtol",
+        "atol",
+        "floor_m",
+        "safety",
+        "cap_m",
+        "timeout_s",
+        "prediction_safety",
+        "tug_rtol",
+    }
     unknown = set(spec) - keys - {"doc"}
     if unknown:
         raise ValueError(f"{p}: unknown keys {sorted(unknown)}")
+    if "steps" in spec and "designs" in spec:
+        raise ValueError(f"{p}: give 'designs' or 'steps', not both")
+    from couture.recording.steps import validate
+
+    validate(spec.get("steps", []), str(p))
     return Case(name=p.stem, path=p, **{k: spec[k] for k in keys if k in spec})
 
 
@@ -104,31 +162,13 @@ def _merge(base: dict, patch: dict) -> dict:
     return out
 
 
-def case_designs(case: Case) -> list[Design]:
-    from couture.pattern.io import load_design
-
-    designs: list[Design] = []
-    current: dict | None = None
-    for entry in case.designs:
-        if isinstance(entry, str):
-            f = case.path.parent / entry
-            d = load_design(f if f.exists() else EXAMPLES / entry)
-            current = msgspec.to_builtins(d)
-        else:
-            if current is None:
-                current = msgspec.to_builtins(Design())
-            current = _merge(current, entry)
-        designs.append(msgspec.convert(current, Design))
-    return designs
-
-
 def _nodes(case: Case, record: Path) -> list[supervisor.NodeSpec]:
-    nodes = [
+    # the sensitivity node only where the case has gestures (it answers presses)
+    return [
         n
         for n in supervisor.default_nodes(solvers=case.solvers, ui=False, record=str(record))
-        if n.name != "sensitivity"
-    ]  # inputs here are whole patterns, no drags
-    return nodes
+        if n.name != "sensitivity" or case.gestures
+    ]
 
 
 def _session() -> BusConfig:
@@ -137,7 +177,7 @@ def _session() -> BusConfig:
     return BusConfig(session=f"golden{uuid.uuid4().hex[:8]}", listen=[f"tcp/127.0.0.1:{free_port()}"])
 
 
-def _wait_recorder(sup: supervisor.Supervisor, timeout: float = 30.0) -> None:
+def _wait_recorder(sup: supervisor.Supervisor, timeout: float = 60.0) -> None:
     """Wait until the nodes are live *and* the recorder's subscription reaches
     us: liveliness comes up before the recorder subscribes, and a publisher's
     matching status on ``pattern`` is already satisfied by the remesher. A
@@ -147,7 +187,7 @@ def _wait_recorder(sup: supervisor.Supervisor, timeout: float = 30.0) -> None:
     from couture.client import Client
 
     with Client(bus=sup.child_bus) as c:
-        c.wait_nodes(["recorder", "remesher", *[f"solver-{s}" for s in sup_solvers(sup)]], timeout)
+        c.wait_nodes(list(sup.children), timeout)
     with open_session(sup.child_bus, name="golden-probe") as bus:
         probe = bus.zenoh.declare_publisher(bus.key(f"probe/{uuid.uuid4().hex[:8]}"))
         deadline = time.monotonic() + timeout
@@ -158,35 +198,18 @@ def _wait_recorder(sup: supervisor.Supervisor, timeout: float = 30.0) -> None:
         probe.undeclare()
 
 
-def sup_solvers(sup: supervisor.Supervisor) -> list[str]:
-    return [n[len("solver-") :] for n in sup.children if n.startswith("solver-")]
-
-
 def make(case: Case) -> Path:
     """Record the case's session into ``case.mcap``: into a temporary file
     first, which replaces the golden only once the session is complete (a
     make that fails keeps the old golden)."""
-    from couture.client import Client
     from couture.recording.parts import expand, numbered
 
-    designs = case_designs(case)
     out = case.mcap
     new = out.with_name(f".{out.stem}.new.mcap")
     # a failed make's leftovers are this command's own scratch files, not recordings
     for stale in [new, *numbered(new).values()]:
         stale.unlink(missing_ok=True)
-    with supervisor.Supervisor(supervisor.SupervisorConfig(bus=_session(), nodes=_nodes(case, new))) as sup:
-        _wait_recorder(sup)
-        with Client(bus=sup.child_bus) as client:
-            for i, d in enumerate(designs):
-                gen = client.publish_pattern(d, name=f"{case.name}-{i}")
-                drape = client.wait_drape("fine", generation=gen, timeout=case.timeout_s, final=True)
-                print(
-                    f"[golden] {case.name}: design {i} (generation {gen}) residual {drape.residual:.2e} "
-                    f"{'converged' if drape.converged else drape.diagnosis}",
-                    file=sys.stderr,
-                )
-            time.sleep(0.5)  # let the recorder take the last messages
+    _drive(case, new, None)
     files = expand(new)
     if len(files) > 1:  # messages sent while it was down are missing: not a golden
         raise RuntimeError(
@@ -366,6 +389,13 @@ def compare_case(case: Case, golden: Path | str, actual: Path | str, labels: set
     """Compare two recordings of the case under its physics rule. A replay
     re-sends the golden's patterns, so their design ids come back; two makes
     publish fresh ones (``labels={"design_id"}`` leaves them out)."""
+    if case.tugs:
+        # the sensitivity node names each tugged design afresh (a uuid); and the
+        # tugged length comes from the equilibrium, so the rest mesh moves by
+        # round-off (X within atol), and a fine vertex on a coarse edge may be
+        # located in either neighbour (the prolongation map's triangle and
+        # barycentrics: integers that round-off decides, measured under SuperLU)
+        labels = (labels or set()) | {"design_id", "fine_parent_tri", "fine_bary"}
     rep = compare(
         str(golden), str(actual), rtol=case.rtol, atol=case.atol, topics=TOPICS, rule=rule(case, golden, labels)
     )
@@ -375,7 +405,106 @@ def compare_case(case: Case, golden: Path | str, actual: Path | str, labels: set
         if tr is not None:
             tr.failures.extend(fails)
             rep.first_deviation = rep.first_deviation or fails[0]
+    if case.gestures:
+        rep.rule += (
+            f"; each gesture predicted, its release prediction within {case.floor_m * 1e3:g} mm + "
+            f"{case.prediction_safety:g} x the bound of the fine drape it was made on (at most "
+            f"{case.cap_m.get('fine', math.inf) * 1e3:g} mm), a tug's design parameters within {case.tug_rtol:g} "
+            "(relative) of the golden's"
+        )
+        fine_bounds = (
+            {r.generation: r.bound_m for r in rep.topics["drape/fine"].drapes} if "drape/fine" in rep.topics else {}
+        )
+        tr = rep.topics.setdefault("drape/predicted", TopicReport("drape/predicted"))
+        tr.failures.extend(prediction_failures(case, golden, actual, tr, fine_bounds))
+        if tr.failures:
+            rep.first_deviation = rep.first_deviation or tr.failures[0]
     return rep
+
+
+def _gestures(path: Path | str) -> tuple[dict[str, list[Any]], list[Any]]:
+    """edit_id -> its predictions, in arrival order; the sensitivity node's tug designs, in order."""
+    from couture.recording.mcapio import read_session
+    from schemas.messages import DrapeMsg, PatternMsg, decode
+
+    preds: dict[str, list[Any]] = {}
+    tugs: list[Any] = []
+    for rec in read_session(str(path), ["drape/predicted", "pattern"]):
+        if rec.topic == "pattern":
+            p = decode(rec.data, PatternMsg)
+            if p.source == "sensitivity":
+                tugs.append(p)
+        else:
+            d = decode(rec.data, DrapeMsg)
+            preds.setdefault(d.edit_id, []).append(d)
+    return preds, tugs
+
+
+def prediction_failures(
+    case: Case, golden: Path | str, actual: Path | str, tr: TopicReport, fine_bounds: dict[int, float]
+) -> list[str]:
+    """Predicted drapes, compared where they do not depend on timing. How many
+    predictions a gesture gets, and at which pointer positions, depends on how
+    fast the node keeps up with the pointer (it predicts the newest position
+    and drops the rest), so intermediate predictions are counted and
+    reported, never matched. The release prediction is made at the recorded
+    release position from the equilibrium of the design pressed on (the
+    sensitivity node's factorization there and the remesher's Ψ): every
+    gesture of the golden must have one in the actual session too, its worst
+    vertex within ``floor_m + prediction_safety * b`` of the golden's, at most
+    the fine cap, where b is the bound the physics rule gave that
+    generation's fine drape: the prediction is that equilibrium moved by its
+    first-order response, so it may move with the equilibrium (and its
+    response with it: hence the safety factor), no more. A 3D tug's design
+    (the sensitivity node's pattern) must have the golden's parameter values
+    within ``case.tug_rtol``."""
+    import numpy as np
+
+    g_preds, g_tugs = _gestures(golden)
+    a_preds, a_tugs = _gestures(actual)
+    fails: list[str] = []
+    for edit_id, gl in g_preds.items():
+        g_rel = next((d for d in gl if d.diagnosis == "release"), None)
+        if g_rel is None:
+            continue
+        al = a_preds.get(edit_id, [])
+        a_rel = next((d for d in al if d.diagnosis == "release"), None)
+        if a_rel is None:
+            tr.missing.append(f"drape/predicted edit_id={edit_id} (release)")
+            fails.append(f"drape/predicted edit {edit_id}: no release prediction ({len(al)} predictions)")
+            continue
+        tr.matched += 1
+        gx, ax = g_rel.x.numpy().astype(np.float64), a_rel.x.numpy().astype(np.float64)
+        if gx.shape != ax.shape:
+            fails.append(f"drape/predicted edit {edit_id}: x shape {ax.shape} != golden {gx.shape}")
+            continue
+        dist = np.linalg.norm(ax - gx, axis=1)
+        i = int(np.argmax(dist))
+        if dist[i] > tr.worst_abs:
+            tr.worst_abs, tr.worst_where = float(dist[i]), f"edit {edit_id} vertex {i}"
+        print(
+            f"[golden] {case.name}: edit {edit_id}: {len(gl)}/{len(al)} predictions (golden/actual, reported), "
+            f"release prediction worst vertex {i} {dist[i] * 1e3:.3f} mm "
+            f"(its fine drape's bound {fine_bounds.get(g_rel.generation, math.inf) * 1e3:.3f} mm)",
+            file=sys.stderr,
+        )
+        bound = min(
+            case.cap_m.get("fine", math.inf),
+            case.floor_m + case.prediction_safety * fine_bounds.get(g_rel.generation, math.inf),
+        )
+        if not dist[i] <= bound:
+            fails.append(
+                f"drape/predicted edit {edit_id} generation {g_rel.generation}: release prediction's worst vertex "
+                f"{i} deviates {dist[i] * 1e3:.3f} mm > bound {bound * 1e3:.3f} mm"
+            )
+    if len(a_tugs) != len(g_tugs):
+        fails.append(f"pattern: {len(a_tugs)} tug designs from the sensitivity node vs golden {len(g_tugs)}")
+    for k, (gp, ap) in enumerate(zip(g_tugs, a_tugs, strict=False)):
+        for name, gv in gp.design.sloper.params.items():
+            av = ap.design.sloper.params.get(name, float("nan"))
+            if not abs(av - gv) <= case.tug_rtol * abs(gv):
+                fails.append(f"pattern: tug {k}: {name} = {av!r} vs golden {gv!r} (> {case.tug_rtol:g} relative)")
+    return fails
 
 
 def scaled_inputs(
@@ -431,20 +560,33 @@ def check(
         inputs = case.mcap
         if fabric_scale or scene_scale:
             inputs = scaled_inputs(case.mcap, Path(tmp) / "inputs.mcap", fabric_scale, scene_scale)
-        _run(case, inputs, actual)
-        return compare_case(case, case.mcap, actual)
+        steplog = _drive(case, actual, inputs)
+        rep = compare_case(case, case.mcap, actual)
+        for k, n in enumerate(steplog.predictions_after_kill):
+            # DESIGN §2: a killed solver must not freeze the UI (predictions keep flowing)
+            print(f"[golden] {case.name}: kill {k}: {n} predictions after the SIGKILL", file=sys.stderr)
+            if n == 0:
+                tr = rep.topics.setdefault("drape/predicted", TopicReport("drape/predicted"))
+                tr.failures.append(f"drape/predicted: no prediction of the gesture after SIGKILL {k} of the solver")
+                rep.first_deviation = rep.first_deviation or tr.failures[-1]
+        return rep
 
 
-def _run(case: Case, inputs: Path, record: Path) -> None:
-    """Fresh nodes recording into ``record``; the inputs replayed in lockstep."""
+def _drive(case: Case, record: Path, inputs: Path | None) -> Any:
+    """Fresh nodes recording into ``record``; the case's steps driven through
+    the bus (couture.recording.steps): made afresh (``inputs`` None, make) or
+    the inputs of ``inputs`` replayed in lockstep (check). Returns the
+    driver's :class:`couture.recording.steps.StepLog`."""
+    from couture.client import Client
+    from couture.recording.steps import Driver, GoldenInputs
+
+    golden_inputs = GoldenInputs.read(inputs) if inputs is not None else None
     with supervisor.Supervisor(supervisor.SupervisorConfig(bus=_session(), nodes=_nodes(case, record))) as sup:
         _wait_recorder(sup)
-        replay(
-            ReplayConfig(
-                path=str(inputs), bus=sup.child_bus, rate=0.0, lockstep=True, lockstep_timeout_s=case.timeout_s
-            )
-        )
-        time.sleep(0.5)
+        with Client(bus=sup.child_bus) as client:
+            steplog = Driver(case, sup, client, golden_inputs, timeout=case.timeout_s).run(case.all_steps())
+            time.sleep(0.5)  # let the recorder take the last messages
+    return steplog
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -465,7 +607,7 @@ def main(argv: list[str] | None = None) -> int:
         for n in names:
             c = load_case(n)
             print(
-                f"{n}: {len(c.designs)} designs, solvers {c.solvers}, golden {'present' if c.mcap.exists() else 'missing'}"
+                f"{n}: {len(c.all_steps())} steps, solvers {c.solvers}, golden {'present' if c.mcap.exists() else 'missing'}"
             )
         return 0
     failed = 0

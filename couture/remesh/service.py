@@ -78,6 +78,9 @@ class MeshUpdate:
 @dataclass
 class RemeshService:
     levels: dict[str, LevelState] = field(default_factory=dict)
+    fine_prolongation: tuple[np.ndarray, np.ndarray] | None = None
+    """the current fine mesh located in the coarse one (parent triangle, barycentrics):
+    re-sent with Ψ, so a solver that joins late (a restarted one) prolongs as the others did"""
     design: Design | None = None
     drafted: DraftedPattern | None = None
     key: tuple | None = None
@@ -157,6 +160,7 @@ class RemeshService:
             coarse, fine = self.levels["coarse"], self.levels["fine"]
             parent, bary = prolongation(coarse.mesh, fine.mesh)
             updates[1].fine_parent_tri, updates[1].fine_bary = parent, bary
+            self.fine_prolongation = (parent, bary)
             self.design, self.drafted, self.key, self.generation = design, drafted, key, generation
             self.design_id = design_id
         return updates

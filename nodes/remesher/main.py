@@ -172,7 +172,11 @@ def main(config: Config) -> None:
                     node.error(f"edit {msg.edit_id}: no Ψ for {element!r}: {e}")
                     return
                 for level, st in service.levels.items():
-                    publish(MeshUpdate(level, st.mesh, st.mesh_generation, "psi"), psi=psis[level], edit_id=msg.edit_id)
+                    up = MeshUpdate(level, st.mesh, st.mesh_generation, "psi")
+                    if level == "fine" and service.fine_prolongation is not None:
+                        # the Ψ re-send is the topic's history: a solver restarted mid-drag takes it whole
+                        up.fine_parent_tri, up.fine_bary = service.fine_prolongation
+                    publish(up, psi=psis[level], edit_id=msg.edit_id)
                 node.count("psi")
 
             worker.submit("press", job)
