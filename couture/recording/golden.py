@@ -104,6 +104,12 @@ class Case:
     bound of the fine drape it was made on, at most the fine cap (:func:`prediction_failures`)"""
     tug_rtol: float = 0.01
     """a tug's design parameter within this relative deviation of the golden's (:func:`prediction_failures`)"""
+    cap_only: list[str] = field(default_factory=list)
+    """levels whose drapes are held to their cap alone, not to the residual bound: a
+    frictionless skirt's coarse level has near-null modes along which two converged
+    drapes lie in separate equilibria (measured: the tugged skirt's coarse drape under
+    SuperLU 41.6 mm from PARDISO's, residuals 1.0e-4 and 3.6e-6, bound 5 mm, while
+    the fine drapes made from them agree to 0.003 mm)"""
 
     def all_steps(self) -> list:
         return self.steps or [{"design": d} for d in self.designs]
@@ -143,6 +149,7 @@ def load_case(name_or_path: str) -> Case:
         "timeout_s",
         "prediction_safety",
         "tug_rtol",
+        "cap_only",
     }
     unknown = set(spec) - keys - {"doc"}
     if unknown:
@@ -376,7 +383,7 @@ def rule(case: Case, golden: Path | str | None = None, labels: set[str] | None =
         cap_m=dict(case.cap_m),
         floor_m=case.floor_m,
         safety=case.safety,
-        compliance=lambda key, _g: table.get(key, float("inf")),
+        compliance=lambda key, g: float("inf") if g.level in case.cap_only else table.get(key, float("inf")),
         path_fields={"mesh/coarse": {"x0"}, "mesh/fine": {"x0"}},
         labels=labels or set(),
     )
