@@ -1,4 +1,4 @@
-"""``couture`` command line: up, record, replay, compare, recover, export-foxglove, drape, bench."""
+"""``couture`` command line: up, record, replay, compare, recover, export-foxglove, drape, export, bench."""
 
 from __future__ import annotations
 
@@ -153,6 +153,49 @@ def _parser() -> argparse.ArgumentParser:
         help="this client's node name (with --tls: its certificate DIR/NAME.pem, which must be a writer)",
     )
     add_bus_args(dp)
+
+    ex = sub.add_parser(
+        "export",
+        help="pattern pieces to cut: DXF (AAMA/ASTM), SVG, PDF, PDF tiled on A4/letter pages",
+        description="Draft a pattern file and write its pieces to cut: the cut line (sew line plus seam\n"
+        "allowance, deeper on hems), the sew line, notches where seams meet, drill holes at dart\n"
+        "points, the grain line and labels (piece, size, how many to cut), at true scale.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ex.add_argument("pattern", help="pattern JSON (couture/design/v1)")
+    ex.add_argument(
+        "--format",
+        nargs="+",
+        default=["dxf", "svg", "pdf", "pdf-tiled"],
+        choices=["dxf", "svg", "pdf", "pdf-tiled"],
+        help="what to write (default: all): NAME.dxf, NAME.svg, NAME.pdf (one page), NAME-PAPER.pdf (tiled)",
+    )
+    ex.add_argument("--out", default=".", metavar="DIR", help="output directory (made if missing; default .)")
+    ex.add_argument("--paper", default="a4", choices=["a4", "letter"], help="pages of pdf-tiled (default a4)")
+    ex.add_argument("--seam-allowance", type=float, default=0.01, metavar="M", help="[m] default 0.01")
+    ex.add_argument("--hem-allowance", type=float, default=0.03, metavar="M", help="[m] on hems, default 0.03")
+    ex.add_argument(
+        "--allowance",
+        action="append",
+        default=[],
+        metavar="SEGMENT=M",
+        help="[m] width on one seam, repeatable: 'neck=0.006' (that segment on every panel) or "
+        "'front:side_right=0.015'; the seam's other side gets it too",
+    )
+    ex.add_argument("--hem-segments", nargs="+", default=["hem", "cuff"], metavar="NAME", help="segments that are hems")
+    ex.add_argument(
+        "--notch-spacing", type=float, default=0.25, metavar="M", help="[m] most seam between notches (0.25)"
+    )
+    ex.add_argument("--no-end-notches", action="store_true", help="no notches at seam ends")
+    ex.add_argument(
+        "--every-panel",
+        action="store_true",
+        help="one piece per panel (default: congruent panels, mirrored or not, are one piece with its cut count)",
+    )
+    ex.add_argument("--units", default="mm", choices=["mm", "in"], help="DXF units (default mm)")
+    ex.add_argument("--sheet-width", type=float, default=1.2, metavar="M", help="[m] rows of pieces on the sheet (1.2)")
+    ex.add_argument("--name", default=None, help="design name on the labels and files (default: the file's stem)")
+    ex.add_argument("--size", default=None, help="size on the labels (default: the sloper's girths, e.g. B88 W70)")
 
     from couture.bus.secure import DEFAULT_HOSTS, DEFAULT_WRITERS, STANDARD_NODES
 
@@ -325,6 +368,9 @@ def _dispatch(args: argparse.Namespace) -> int:
             verbose=args.verbose or args.drape_verbose,
             name=args.name,
         )
+
+    if args.cmd == "export":
+        return export_pattern(args)
 
     if args.cmd == "bench":
         try:
@@ -590,12 +636,15 @@ def drape(
         write_obj(out_dir / "drape.obj", d.x.numpy(), mesh.tris.numpy(), mesh.X.numpy())
         shutil.copyfile(pattern, out_dir / "pattern.json")
         from couture.pattern import draft
+        from couture.pattern.cutting import CutSpec
         from couture.pattern.io import export_dxf, export_pdf, export_svg
 
         drafted = draft(design)
-        export_dxf(drafted, out_dir / "pattern.dxf")
-        export_svg(drafted, out_dir / "pattern.svg")
-        export_pdf(drafted, out_dir / "pattern.pdf")
+        # pieces to cut: 1 cm seam allowances, 3 cm hems, notches, grain, labels
+        cut = CutSpec(design_name=Path(pattern).stem, sheet_width=1.2)
+        export_dxf(drafted, out_dir / "pattern.dxf", spec=cut)
+        export_svg(drafted, out_dir / "pattern.svg", spec=cut)
+        export_pdf(drafted, out_dir / "pattern.pdf", spec=cut)
         (out_dir / "drape.json").write_text(  # standard JSON: a non-finite residual is null
             dumps(
                 {
@@ -623,6 +672,68 @@ def drape(
         )
         return DrapeExit.NOT_CONVERGED
     return DrapeExit.CONVERGED
+
+
+def export_pattern(args: argparse.Namespace) -> int:
+    """``couture export``: the pieces of a pattern file as DXF, SVG, PDF, tiled PDF."""
+    from couture.pattern import draft_with_context
+    from couture.pattern.cutting import CutSpec, cut_pieces
+    from couture.pattern.io import export_dxf, export_pdf, export_pdf_tiled, export_svg, load_design
+
+    logging.getLogger("ezdxf").setLevel(logging.WARNING)
+    design = load_design(args.pattern)
+    drafted, ctx = draft_with_context(design)
+    widths = {}
+    for item in args.allowance:
+        key, eq, value = item.partition("=")
+        try:
+            widths[key] = float(value)
+        except ValueError:
+            raise ValueError(f"--allowance {item!r} is not SEGMENT=WIDTH (a width in metres)") from None
+        if not eq or not key:
+            raise ValueError(f"--allowance {item!r} is not SEGMENT=WIDTH (a width in metres)")
+    name = args.name or Path(args.pattern).stem
+    size = args.size
+    if size is None:
+        girths = [
+            (k[0].upper(), ctx.params[f"{k}_girth"]) for k in ("bust", "waist", "hip") if f"{k}_girth" in ctx.params
+        ]
+        size = " ".join(f"{c}{v * 100:.0f}" for c, v in girths)
+    spec = CutSpec(
+        seam_allowance=args.seam_allowance,
+        hem_allowance=args.hem_allowance,
+        hem_segments=tuple(args.hem_segments),
+        widths=widths,
+        notch_spacing=args.notch_spacing,
+        end_notches=not args.no_end_notches,
+        group=not args.every_panel,
+        design_name=name,
+        size=size,
+        sheet_width=args.sheet_width,
+    )
+    pieces = cut_pieces(drafted, spec)  # checks the spec before any file is written
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = "".join(c if c.isalnum() or c in "_-." else "_" for c in name)
+    written = []
+    for fmt in dict.fromkeys(args.format):
+        if fmt == "dxf":
+            export_dxf(drafted, out / f"{stem}.dxf", units=args.units, spec=spec)
+            written.append(f"{stem}.dxf")
+        elif fmt == "svg":
+            export_svg(drafted, out / f"{stem}.svg", spec=spec)
+            written.append(f"{stem}.svg")
+        elif fmt == "pdf":
+            export_pdf(drafted, out / f"{stem}.pdf", spec=spec)
+            written.append(f"{stem}.pdf")
+        else:
+            cols, rows = export_pdf_tiled(drafted, out / f"{stem}-{args.paper}.pdf", args.paper, spec=spec)
+            written.append(f"{stem}-{args.paper}.pdf ({cols} x {rows} = {cols * rows} pages)")
+    print(f"{args.pattern}: {len(pieces)} pieces to cut ({sum(p.quantity for p in pieces)} with copies)")
+    for p in pieces:
+        print(f"  {p.name}: {p.labels[-1]}, {len(p.notches)} notches, {len(p.drills)} drill holes")
+    print(f"wrote into {out}: {', '.join(written)}")
+    return 0
 
 
 def write_obj(path: Path, x, tris, uv=None) -> None:

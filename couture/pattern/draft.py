@@ -500,4 +500,4 @@ def _mirror(panel: Panel, st: Stroke) -> Panel:
             segments.append(Segment(s.name, s.start, s.stop, s.hole))
             h = len(panel.holes[s.hole])
             segments.append(Segment(s.name + "_mirror", (h - s.stop) % h, (h - s.start) % h, s.hole + nh))
-    return Panel(panel.name, outline, holes, segments, panel.placement)
+    return Panel(panel.name, outline, holes, segments, panel.placement, panel.grain)
