@@ -217,7 +217,8 @@ def test_notches_match_across_seams(tmp_path, path):
 @pytest.mark.parametrize("path", EXAMPLES, ids=IDS)
 def test_grain_lines_and_labels(tmp_path, path):
     """Per piece: one grain line along the panel's vertical inside the sew line,
-    the AAMA piece system texts, and cut counts that add up to the panels."""
+    turn points on its lines' corners, the AAMA piece system texts, and cut
+    counts that add up to the panels."""
     pattern = draft(load_design(path))
     spec = CutSpec(design_name=path.stem, size="B88")
     pieces = cut_pieces(pattern, spec)
@@ -232,6 +233,13 @@ def test_grain_lines_and_labels(tmp_path, path):
         sew = max(b["layers"]["14:POLYLINE"], key=len)
         assert point_in_polygon(g, sew).all()
         assert v[1] > 0.3 * np.ptp(sew[:, 1])
+        # turn points (layer 2): corners of the cut and sew lines, at least the cut line's 4
+        turns = np.array(b["layers"]["2:POINT"])
+        (cut,) = b["layers"]["1:POLYLINE"]
+        on_cut = _dist_to_polyline(turns, cut) < 1e-7
+        assert on_cut.sum() >= 4
+        lines = b["layers"]["14:POLYLINE"] + b["layers"].get("11:POLYLINE", [])
+        assert (on_cut | np.any([_dist_to_polyline(turns, q) < 1e-7 for q in lines], axis=0)).all()
         texts = dict(s.split(": ", 1) for layer, s in b["texts"] if layer == "1")
         assert texts["Piece Name"] == name and texts["Size"] == "B88" and texts["Style Name"] == path.stem
         q = int(texts["Quantity"])

@@ -84,9 +84,9 @@ class CutSpec:
     """the design's name on every label ('Style Name: ')"""
     size: str = ""
     """the size on every label ('Size: ')"""
-    sheet_width: float = 0.0
+    sheet_width: float = 1.2
     """[m] SVG / PDF sheets (and the DXF's insertion points): pieces in rows no
-    wider than this; 0: all in one row"""
+    wider than this (a plotter roll); 0: all in one row"""
 
 
 @dataclass
@@ -255,6 +255,8 @@ def offset_polygon(P: np.ndarray, w: np.ndarray, mitre_limit: float = 4.0) -> np
             polys.append(Polygon([V, A, A + sa * T[i], B + sb * T[j], B]))
         else:
             polys.append(Polygon([V, A, B]))
+    # the union's exterior: a gap the allowance closes over (a narrow notch in
+    # the outline) is filled, it is not cut out
     U = union_all([p if p.is_valid else p.buffer(0) for p in polys])
     # a closing by 0.1 um seals the zero-width cracks round-off leaves between
     # neighbouring rectangles (they would stay in the outline as spikes)

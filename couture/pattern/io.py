@@ -147,7 +147,7 @@ def _spec(seam_allowance: float, spec: CutSpec | None) -> CutSpec:
     that width everywhere, hems included, every panel its own piece."""
     if spec is not None:
         return spec
-    return CutSpec(seam_allowance=seam_allowance, hem_allowance=seam_allowance, group=False)
+    return CutSpec(seam_allowance=seam_allowance, hem_allowance=seam_allowance, group=False, sheet_width=0.0)
 
 
 @dataclass
@@ -256,7 +256,9 @@ def _legend(sheet: Sheet) -> list[str]:
 
 # ------------------------------------------------------------------ DXF (AAMA/ASTM)
 
-AAMA_BOUNDARY, AAMA_NOTCH, AAMA_GRAIN, AAMA_INTERNAL = "1", "4", "7", "8"
+AAMA_BOUNDARY, AAMA_TURN, AAMA_NOTCH, AAMA_GRAIN, AAMA_INTERNAL = "1", "2", "4", "7", "8"
+TURN_ANGLE = math.radians(25)
+"""a line's vertex that turns more than this is a turn point (corner), layer 2"""
 AAMA_CUTOUT, AAMA_DRILL, AAMA_SEW, AAMA_ANNOTATION = "11", "13", "14", "15"
 AAMA_MIRROR = AAMA_INTERNAL  # an older name: the symmetry axis is drawn as an internal line
 _DXF_LAYER = {
@@ -284,7 +286,8 @@ def export_dxf(
     piece system texts ('Piece Name: ', 'Quantity: ', 'Size: ', 'Style Name: ')
     as TEXT, 14 the sew lines (the outline first, then each hole's), 11 the cut
     lines of openings, 4 notches (LINEs from the cut line inward), 7 the grain
-    line (one LINE, tail to head), 8 internal lines (grain arrowheads, the
+    line (one LINE, tail to head), 2 turn points (POINTs at the corners of the
+    cut and sew lines), 8 internal lines (grain arrowheads, the
     symmetry axis), 13 drill holes (POINTs), 15 annotation text ('Cut 2 ...').
     Without ``spec``: ``seam_allowance`` [m] on every edge, hems included, one
     piece per panel. Units: mm ($INSUNITS 4) or inches ($INSUNITS 1)."""
@@ -298,7 +301,7 @@ def export_dxf(
     doc = ezdxf.new("R2000")
     doc.header["$INSUNITS"] = 4 if units == "mm" else 1
     doc.header["$MEASUREMENT"] = 1 if units == "mm" else 0
-    for layer in (AAMA_BOUNDARY, AAMA_NOTCH, AAMA_GRAIN, AAMA_INTERNAL, AAMA_CUTOUT, AAMA_DRILL, AAMA_SEW):
+    for layer in (AAMA_BOUNDARY, AAMA_TURN, AAMA_NOTCH, AAMA_GRAIN, AAMA_INTERNAL, AAMA_CUTOUT, AAMA_DRILL, AAMA_SEW):
         if layer not in doc.layers:
             doc.layers.add(layer)
     doc.layers.add(AAMA_ANNOTATION)
@@ -310,6 +313,8 @@ def export_dxf(
             P = m.pts * scale
             if m.kind in ("cut", "sew", "cutout"):
                 blk.add_polyline2d([tuple(v) for v in P], close=True, dxfattribs={"layer": _DXF_LAYER[m.kind]})
+                for v in P[turn_points(m.pts)]:
+                    blk.add_point(tuple(v), dxfattribs={"layer": AAMA_TURN})
             elif m.kind == "arrow":
                 blk.add_polyline2d([tuple(v) for v in P], close=False, dxfattribs={"layer": AAMA_INTERNAL})
             elif m.kind == "drill":
@@ -328,6 +333,14 @@ def export_dxf(
         msp.add_blockref(blk.name, (shift[0] * scale, shift[1] * scale))
     doc.saveas(str(path))
     return pieces
+
+
+def turn_points(P: np.ndarray) -> np.ndarray:
+    """Indices of the closed polyline's corners: where it turns more than ``TURN_ANGLE``."""
+    a = P - np.roll(P, 1, axis=0)
+    b = np.roll(P, -1, axis=0) - P
+    cos = (a * b).sum(1) / np.maximum(np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-300)
+    return np.nonzero(cos < math.cos(TURN_ANGLE))[0]
 
 
 def _block_name(name: str) -> str:
