@@ -245,13 +245,16 @@ _SYSTEM_TEXT = ("Piece Name", "Quantity", "Size", "Style Name")
 
 
 def _legend(sheet: Sheet) -> list[str]:
+    """Lines written inside the scale square (so they print on the first page)."""
     s = sheet.spec
-    out = [
-        f"{s.design_name or 'couture pattern'}" + (f", size {s.size}" if s.size else ""),
-        f"seam allowance {s.seam_allowance * 100:g} cm, hems {s.hem_allowance * 100:g} cm (included)",
-        "scale check: this square is 10 cm x 10 cm",
+    return [
+        s.design_name or "couture pattern",
+        f"size {s.size}" if s.size else "",
+        f"seams {s.seam_allowance * 100:g} cm, hems {s.hem_allowance * 100:g} cm",
+        "allowances included",
+        "",
+        "this square: 10 cm x 10 cm",
     ]
-    return out
 
 
 # ------------------------------------------------------------------ DXF (AAMA/ASTM)
@@ -475,7 +478,7 @@ def export_svg(
     )
     for i, t in enumerate(_legend(sheet)):
         lines.append(
-            f'<text x="{x0 + s + 10:.1f}" y="{H * mm - (y0 + s) + 8 + 7 * i:.1f}" font-size="5" '
+            f'<text x="{x0 + 4:.1f}" y="{H * mm - (y0 + s) + 9 + 6 * i:.1f}" font-size="4" '
             f'font-family="sans-serif">{_xml(t)}</text>'
         )
     lines.append("</svg>")
@@ -533,10 +536,14 @@ def _pdf_marks(c, marks: list[Mark]) -> None:
             c.drawString(*(m.pts[0] * pt), m.text)
 
 
-def _pdf_sheet(c, sheet: Sheet) -> None:
-    """Every piece, the scale square and the legend, in sheet coordinates (points)."""
+def _pdf_sheet(c, sheet: Sheet, window: tuple[float, float, float, float] | None = None) -> None:
+    """Every piece, the scale square and the legend, in sheet coordinates (points);
+    with a ``window`` (x0, y0, x1, y1) [m], only the pieces that reach into it."""
     pt = PT_PER_M
     for p, shift in zip(sheet.pieces, sheet.shifts, strict=True):
+        lo, hi = p.cut.min(0) + shift, p.cut.max(0) + shift
+        if window and (hi[0] < window[0] or lo[0] > window[2] or hi[1] < window[1] or lo[1] > window[3]):
+            continue
         _pdf_marks(c, piece_marks(p, shift))
     c.setDash()
     c.setStrokeColorRGB(0, 0, 0.8)
@@ -544,9 +551,9 @@ def _pdf_sheet(c, sheet: Sheet) -> None:
     x0, y0 = sheet.square * pt
     c.rect(x0, y0, SCALE_SQUARE * pt, SCALE_SQUARE * pt, stroke=1, fill=0)
     c.setStrokeColorRGB(0, 0, 0)
-    c.setFont("Helvetica", 9)
+    c.setFont("Helvetica", 10)
     for i, t in enumerate(_legend(sheet)):
-        c.drawString(x0 + SCALE_SQUARE * pt + 12, y0 + SCALE_SQUARE * pt - 12 - 13 * i, t)
+        c.drawString(x0 + 10, y0 + SCALE_SQUARE * pt - 20 - 14 * i, t)
 
 
 def export_pdf(
@@ -631,7 +638,7 @@ def export_pdf_tiled(
             pth.rect(0, 0, pw * pt, ph * pt)
             c.clipPath(pth, stroke=0, fill=0)
             c.translate(-x0 * pt, -(y1 - ph) * pt)
-            _pdf_sheet(c, sheet)
+            _pdf_sheet(c, sheet, (x0, y1 - ph, x0 + pw, y1))
             c.setDash([2, 2])
             c.setLineWidth(0.3)
             c.setStrokeColorRGB(0.4, 0.4, 0.4)
@@ -643,6 +650,8 @@ def export_pdf_tiled(
             c.setLineWidth(0.5)
             c.setStrokeColorRGB(0, 0, 0)
             for x, y in marks:
+                if not (x0 - 0.01 <= x <= x0 + pw + 0.01 and y1 - ph - 0.01 <= y <= y1 + 0.01):
+                    continue  # on another page
                 c.circle(x * pt, y * pt, 0.003 * pt, stroke=1, fill=0)
                 c.line((x - 0.005) * pt, y * pt, (x + 0.005) * pt, y * pt)
                 c.line(x * pt, (y - 0.005) * pt, x * pt, (y + 0.005) * pt)
