@@ -386,3 +386,19 @@ def test_cli_export(tmp_path, capsys):
         q = 0.5 * (P[len(P) // 2] + P[len(P) // 2 - 1])
         assert _dist_to_polyline(q[None], cut)[0] == pytest.approx(w, abs=1e-4), seg
     assert main(["export", str(EXAMPLES[0]), "--out", str(tmp_path), "--allowance", "nope"]) == 1
+
+
+@pytest.mark.parametrize("which", ["min", "max"])
+def test_cut_lines_are_simple_at_option_extremes(which):
+    """Every sloper with every option at its minimum (maximum): each cut line is a
+    simple polygon holding its whole sew line, and no allowance is narrower than asked."""
+    from couture.pattern import SLOPERS
+    from schemas.design import Design, Sloper
+
+    for kind, sd in SLOPERS.items():
+        pattern = draft(Design(sloper=Sloper(kind=kind, params={o.name: getattr(o, which) for o in sd.options})))
+        for pc in cut_pieces(pattern, CutSpec(group=False)):
+            assert self_intersections(pc.cut) == [], (kind, pc.name)
+            assert point_in_polygon(pc.sew, pc.cut).all(), (kind, pc.name)
+            # every sew vertex at least the smallest width (1 cm) inside the cut line
+            assert _dist_to_polyline(pc.sew, pc.cut).min() > SEAM - 1e-6, (kind, pc.name)
