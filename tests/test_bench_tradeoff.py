@@ -3,12 +3,12 @@ what its numbers must obey (the reference is its own zero, a tighter Newton
 is no farther from it, a sensitivity prediction beats the old drape)."""
 
 import json
+from itertools import pairwise
 
 import numpy as np
 import pytest
 
-from couture.bench import tradeoff
-from couture.bench import write_results
+from couture.bench import tradeoff, write_results
 
 TOLS = (1e-2, 1e-4)
 
@@ -38,7 +38,7 @@ def test_structure(results, tmp_path):
     # the front: fastest first, each point strictly more accurate than the one before
     front = [next(r for r in rows if r["label"] == lab) for lab in sc["pareto"]]
     assert front and front[0]["latency_s"] == min(r["latency_s"] for r in rows)
-    assert all(a["latency_s"] <= b["latency_s"] and a["rms_mm"] > b["rms_mm"] for a, b in zip(front, front[1:]))
+    assert all(a["latency_s"] <= b["latency_s"] and a["rms_mm"] > b["rms_mm"] for a, b in pairwise(front))
     assert sc["reference"]["self_rms_mm"] == 0.0
     assert sc["reference"]["residual"] <= sc["reference"]["tol"]
     png = tradeoff.plot(data, tmp_path / "tradeoff.png")
