@@ -80,7 +80,7 @@ def test_point_inside_offset_is_pushed_out():
     f = model.forces(x0, ["contact"])
     assert np.all(np.einsum("ij,ij->i", f[inside], grad[inside]) > 0)  # outward
     assert np.all(f[~inside] == 0)
-    x, hist = newton(model, x0, tol=1e-12, max_iters=50, use_exact=False)
+    x, hist = newton(model, x0, tol=1e-12, max_iters=200, use_exact=False)
     assert hist[-1] < 1e-12
     # the sheet is free (no gravity, no pins): any placement whose contact forces
     # vanish is an equilibrium, just outside the layer or grazing it, where the C²
@@ -177,6 +177,30 @@ def test_friction_slides_above_static_angle():
     fn = model.contact_normal_force(model.contact_offset - phi)
     ft = np.linalg.norm(model.forces(x, ["friction"]), axis=1)
     np.testing.assert_allclose(ft, 0.3 * fn, rtol=1e-9)
+
+
+def test_kinetic_friction_follows_the_normal_force():
+    """A slipping vertex's kinetic friction is mu_k times the normal force where the
+    vertex is now, along the direction it slipped in; off the body it is zero."""
+    model, x0, t = incline_scene(35.0)
+    model.update_friction(x0)
+    x1 = x0 - 0.01 * t  # 1 cm down the slope: every anchor pulls far beyond mu_s f_n
+    assert model.slip_friction(x1) == model.n and model.slipping.all()
+    before = model.slip_force.copy()
+    n = model.body.normal
+    x2 = x1.copy()
+    x2[::2] -= 0.002 * n  # deeper: pushed harder
+    x2[1::7] += 0.05 * n  # lifted off the body
+    assert model.rescale_slipping(x2) > 0
+    phi = (x2 - model.body.point) @ n  # the plane's signed distance, independently of the model
+    pen = model.contact_offset - phi
+    k, eps = model.contact_stiffness, model.contact_smoothing
+    fn = np.where(pen <= 0, 0.0, np.where(pen < eps, 0.5 * k * pen**2 / eps, k * (pen - 0.5 * eps)))
+    np.testing.assert_allclose(np.linalg.norm(model.slip_force, axis=1), 0.3 * fn, rtol=1e-12, atol=1e-15)
+    touching = fn > 0
+    unit = before[touching] / np.linalg.norm(before[touching], axis=1)[:, None]
+    np.testing.assert_allclose(model.slip_force[touching], unit * 0.3 * fn[touching][:, None], rtol=1e-12)
+    assert not model.slip_force[~touching].any()
 
 
 def test_friction_anchor_released_when_contact_ends():
