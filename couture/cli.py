@@ -701,7 +701,10 @@ def adjust(args: argparse.Namespace) -> int:
         f"seams differ by at most {s['seams']['max_mismatch_mm']['adjusted']:.2f} mm",
         file=sys.stderr,
     )
-    print(f"[adjust] wrote {out}/pattern.dxf, .svg, .pdf, panels.json, drape_*.obj, adjust.json, adjust.png", file=sys.stderr)
+    print(
+        f"[adjust] wrote {out}/pattern.dxf, .svg, .pdf, panels.json, drape_*.obj, adjust.json, adjust.png",
+        file=sys.stderr,
+    )
     return 0
 
 

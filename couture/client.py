@@ -583,6 +583,8 @@ class SolveFanout:
         self.solvers = list(solvers)
         self.tol, self.max_seconds = tol, max_seconds
         self.counts: dict[str, int] = {s: 0 for s in self.solvers}
+        self.ready_timeout = 20.0
+        """[s] how long a node that answers nothing at once (its queryable not declared yet) is asked again"""
         self._next = 0
         self._lock = threading.Lock()
 
@@ -592,16 +594,23 @@ class SolveFanout:
         with self._lock:
             name = self.solvers[self._next % len(self.solvers)]
             self._next += 1
-        res = self.client.solve(
-            with_rest(self.mesh, X, x_warm),
-            x_warm,
-            solver=name,
-            tol=self.tol,
-            max_seconds=self.max_seconds,
-            design=self.design,
-        )
-        if res.error:
-            raise RuntimeError(f"solver {name} failed: {res.error}")
+        mesh = with_rest(self.mesh, X, x_warm)
+        deadline = time.monotonic() + self.ready_timeout
+        while True:
+            asked = time.monotonic()
+            try:
+                res = self.client.solve(
+                    mesh, x_warm, solver=name, tol=self.tol, max_seconds=self.max_seconds, design=self.design
+                )
+                break
+            except TimeoutError:
+                # a node's liveliness token comes up before its queryable: an
+                # empty answer at once means "not serving yet", not "too slow"
+                if time.monotonic() - asked > 1.0 or time.monotonic() > deadline:
+                    raise
+                time.sleep(0.2)
+        if res.error or res.x is None:
+            raise RuntimeError(f"solver {name} failed: {res.error or 'no positions in its result'}")
         with self._lock:
             self.counts[name] += 1
         return Simulated(

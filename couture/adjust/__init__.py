@@ -12,7 +12,16 @@
 Bus-free: ``couture.client.SolveFanout`` sends the solves to solver nodes.
 """
 
-from .fixed_point import MANNEQUIN_HEIGHT, AdjustResult, Iteration, Simulated, adjust, local_simulator, with_rest
+from .fixed_point import (
+    MANNEQUIN_HEIGHT,
+    AdjustResult,
+    Iteration,
+    Simulated,
+    adjust,
+    fixed_point_update,
+    local_simulator,
+    with_rest,
+)
 from .target import Target, hem_edit, waist_edit
 
 __all__ = [
@@ -22,6 +31,7 @@ __all__ = [
     "Simulated",
     "Target",
     "adjust",
+    "fixed_point_update",
     "hem_edit",
     "local_simulator",
     "waist_edit",

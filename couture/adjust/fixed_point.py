@@ -98,6 +98,15 @@ def undo_compression(t_target: np.ndarray, t_src3: np.ndarray, T_src: np.ndarray
     return C @ t_target
 
 
+def fixed_point_update(T: np.ndarray, t_k: np.ndarray, t_target: np.ndarray) -> np.ndarray:
+    """Bartle eqs. 6-7 per triangle: ``T ← T (t_k)⁻¹ t_target``. T: pattern
+    triangles (m, 2, 2) as edge matrices; t_k, t_target: simulated and target
+    triangles in their aligned frames (:func:`~couture.adjust.geometry.frames3`).
+    If the simulation maps each aligned triangle by a fixed A (t_k = A
+    aligned(T)), the result simulates to exactly t_target."""
+    return T @ np.linalg.inv(t_k) @ t_target
+
+
 def align_panels(X: np.ndarray, X_ref: np.ndarray, tris: np.ndarray, tri_panel: np.ndarray) -> np.ndarray:
     """Each panel of X moved rigidly onto the same panel of X_ref (for layout and comparison)."""
     out = X.copy()
@@ -195,8 +204,7 @@ def adjust(
         if k == max_iters:
             break
         tu = time.perf_counter()
-        B = np.linalg.inv(t_k) @ t_g  # eq. 6: T* = T (t_k)^-1 t_g
-        T_new = edges2(X, tris) @ B
+        T_new = fixed_point_update(edges2(X, tris), t_k, t_g)
         X = Embedding(tris, T_new, n).run(X, iters=embed_iters)
         X = align_panels(X, mesh.X, tris, mesh.tri_panel)
         raw_mismatch = max_seam_mismatch(mesh, X)

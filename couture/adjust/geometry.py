@@ -124,7 +124,18 @@ def lscm(x: np.ndarray, tris: np.ndarray) -> np.ndarray:
     rhs = -(Ap @ z[pins_a])
     N = (Af.T @ Af).tocsc()
     z[free] = splu(N).solve(Af.T @ rhs)
-    return np.column_stack([z[:n], z[n:]])
+    X = np.column_stack([z[:n], z[n:]])
+    # the pins sit at their 3D chord distance, which makes a curved piece too
+    # small: scale each piece to its 3D area (an isometric flattening, where
+    # one exists, is conformal and so is then found exactly)
+    a3 = np.abs(areas(tref))
+    a2 = np.abs(areas(edges2(X, tris)))
+    tri_comp = comp[tris[:, 0]]
+    for c in np.unique(tri_comp):
+        sel = tri_comp == c
+        idx = comp == c
+        X[idx] = X[idx][0] + (X[idx] - X[idx][0]) * np.sqrt(a3[sel].sum() / a2[sel].sum())
+    return X
 
 
 def _polar_rotations(J: np.ndarray) -> np.ndarray:

@@ -38,7 +38,9 @@ def garment_mesh(design: Design, vertices: int | None = None) -> GarmentMesh:
         design = msgspec.structs.replace(
             design,
             resolution=msgspec.structs.replace(
-                design.resolution, coarse_vertices=int(vertices), fine_vertices=max(int(vertices), design.resolution.fine_vertices)
+                design.resolution,
+                coarse_vertices=int(vertices),
+                fine_vertices=max(int(vertices), design.resolution.fine_vertices),
             ),
         )
     return RemeshService().set_design(design, 1)[0].mesh
@@ -99,7 +101,8 @@ class CaseResult:
                 "adjusted": seam_lengths(m, r.X),
                 "max_mismatch_mm": {
                     "source": 1e3 * max((abs(s["mismatch_m"]) for s in seam_lengths(m, m.X)), default=0.0),
-                    "flattening_only": 1e3 * max((abs(s["mismatch_m"]) for s in seam_lengths(m, r.X_flat)), default=0.0),
+                    "flattening_only": 1e3
+                    * max((abs(s["mismatch_m"]) for s in seam_lengths(m, r.X_flat)), default=0.0),
                     "adjusted_before_equalizing": 1e3 * r.history[r.best].seam_mismatch_raw_m,
                     "adjusted": 1e3 * max((abs(s["mismatch_m"]) for s in seam_lengths(m, r.X)), default=0.0),
                 },
@@ -257,7 +260,11 @@ def plot_case(case: CaseResult, path: str | Path) -> None:
 
     ax = fig.add_subplot(1, 2, 2)
     shift = {p.name: s for p, s in layout(drafted_from_mesh(m, m.X))}
-    for X, c, lab in ((m.X, "tab:green", "source pattern"), (r.X_flat, "tab:red", "flattening only"), (r.X, "tab:blue", "adjusted")):
+    for X, c, lab in (
+        (m.X, "tab:green", "source pattern"),
+        (r.X_flat, "tab:red", "flattening only"),
+        (r.X, "tab:blue", "adjusted"),
+    ):
         for i, p in enumerate(drafted_from_mesh(m, X).panels):
             P = np.vstack([p.outline, p.outline[:1]]) + shift[p.name]
             ax.plot(P[:, 0], P[:, 1], color=c, lw=1, label=lab if i == 0 else None)

@@ -62,7 +62,13 @@ def seam_lengths(mesh: GarmentMesh, X: np.ndarray) -> list[dict]:
         s[0] += float(np.linalg.norm(X[a] - X[b]))
         s[1] += float(np.linalg.norm(P[i] - P[j]))
     return [
-        {"emitter_panel": k[0], "receiver_panel": k[1], "emitter_m": v[0], "receiver_m": v[1], "mismatch_m": v[0] - v[1]}
+        {
+            "emitter_panel": k[0],
+            "receiver_panel": k[1],
+            "emitter_m": v[0],
+            "receiver_m": v[1],
+            "mismatch_m": v[0] - v[1],
+        }
         for k, v in sorted(acc.items())
     ]
 

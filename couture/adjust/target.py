@@ -47,9 +47,7 @@ class Target:
     info: dict
 
 
-def hem_edit(
-    x_src: np.ndarray, tris: np.ndarray, dh: float, *, keep: float = 0.35, slide_steps: int = 12
-) -> Target:
+def hem_edit(x_src: np.ndarray, tris: np.ndarray, dh: float, *, keep: float = 0.35, slide_steps: int = 12) -> Target:
     """Shorten a draped garment by ``-dh`` [m] (dh < 0), see the module docstring."""
     if not dh < 0:
         raise ValueError(f"hem edit: dh = {dh!r} m; only shortening (dh < 0) is supported")

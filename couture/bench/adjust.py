@@ -28,7 +28,6 @@ import sys
 import time
 from collections.abc import Iterator
 from dataclasses import replace
-from pathlib import Path
 
 from couture.bench import add_out_arg, source_commit, write_results
 
