@@ -217,3 +217,43 @@ def test_adjustment_over_two_solver_processes_matches_one_and_beats_flattening(s
         flat, best = r.history[0], r.history[r.best]
         assert best.hausdorff_m < 0.7 * flat.hausdorff_m  # 200 vertices: 60 -> 32 mm
         assert best.stretch_mean > flat.stretch_mean + 0.01
+
+
+@pytest.mark.timeout(120)
+def test_couture_adjust_writes_a_cuttable_pattern(tmp_path):
+    """The command end to end on a small skirt: its solver node started, the
+    adjusted pattern written as DXF that reads back with the panels' outlines,
+    seams of equal length, and the numbers in adjust.json."""
+    import json
+
+    from couture.adjust.pipeline import garment_mesh
+    from couture.adjust.seams import max_seam_mismatch
+    from couture.cli import main
+    from couture.client import load_design
+    from couture.pattern.io import import_dxf
+
+    src = "couture/pattern/examples/default_skirt.json"
+    rc = main(["adjust", src, "--hem", "-0.15", "--out", str(tmp_path), "--vertices", "200", "--iters", "1"])
+    assert rc == 0
+    s = json.loads((tmp_path / "adjust.json").read_text())
+    assert s["solvers"] == ["solver-newton"] and len(s["iterations"]) == 2
+    assert s["adjusted"]["hausdorff_pct"] < s["flattening_only"]["hausdorff_pct"]
+    pieces = import_dxf(tmp_path / "pattern.dxf")
+    z = np.load(tmp_path / "adjust_mesh.npz")
+    mesh = garment_mesh(load_design(src), 200)
+    assert sorted(pieces) == sorted(mesh.panel_names)
+    # the DXF holds the adjusted outlines at true scale (mm in the file, read back in m)
+    area = sum(abs(np.linalg.det(edges2(z["X_adjusted"], z["tris"]))) / 2)
+    dxf_area = sum(
+        0.5
+        * abs(
+            np.sum(
+                p["outline"][:, 0] * np.roll(p["outline"][:, 1], -1)
+                - np.roll(p["outline"][:, 0], -1) * p["outline"][:, 1]
+            )
+        )
+        for p in pieces.values()
+    )
+    assert dxf_area == pytest.approx(area, rel=1e-4)
+    assert max_seam_mismatch(mesh, z["X_adjusted"]) < 1e-6
+    assert (tmp_path / "adjust.png").stat().st_size > 10_000

@@ -23,7 +23,7 @@ from schemas.design import Design
 
 from .fixed_point import MANNEQUIN_HEIGHT, AdjustResult, Simulate, adjust
 from .geometry import edges2, frames3, stretch
-from .seams import drafted_from_mesh, panel_symmetry, seam_lengths
+from .seams import drafted_from_mesh, mirror_pairs, panel_symmetry, seam_lengths
 from .target import Target, hem_edit, waist_edit
 
 EDITS = ("hem", "waist")
@@ -70,7 +70,6 @@ class CaseResult:
         """JSON-able numbers: per iteration, flattening-only against adjusted, seams, symmetry."""
         r, m = self.result, self.mesh
         flat, best = r.history[0], r.history[r.best]
-        sym_groups = [list(m.panel_names)] if len(m.panel_names) > 1 else []
         return {
             "design": self.design_name,
             "edit": self.edit,
@@ -108,8 +107,10 @@ class CaseResult:
                 },
             },
             "symmetry": {
-                "source": panel_symmetry(m, m.X, sym_groups),
-                "adjusted": panel_symmetry(m, r.X, sym_groups),
+                "mirror_pairs": mirror_pairs(m, self.x_source),
+                "source": panel_symmetry(m, m.X, mirror_pairs(m, self.x_source)),
+                "flattening_only": panel_symmetry(m, r.X_flat, mirror_pairs(m, self.x_source)),
+                "adjusted": panel_symmetry(m, r.X, mirror_pairs(m, self.x_source)),
             },
             "pattern_change": {
                 "mean_stretch_adjusted_vs_source": float(stretch(edges2(r.X, m.tris), edges2(m.X, m.tris)).mean()),
@@ -242,7 +243,7 @@ def plot_case(case: CaseResult, path: str | Path) -> None:
 
     m, r = case.mesh, case.result
     surf = SurfaceDistance(case.target.x, m.tris)
-    fig = plt.figure(figsize=(16, 8))
+    fig = plt.figure(figsize=(14, 7))
     views = [("flattening only", r.x_flat, r.history[0]), ("adjusted", r.x, r.history[r.best])]
     for col, (title, x, it) in enumerate(views):
         _, d, _ = surf.closest(x)
@@ -272,5 +273,5 @@ def plot_case(case: CaseResult, path: str | Path) -> None:
     ax.legend(fontsize=8)
     ax.set_title(f"{case.design_name}: {case.edit} {case.amount:+.2f} m; patterns [m]", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=65)
     plt.close(fig)

@@ -119,27 +119,48 @@ def drafted_from_mesh(mesh: GarmentMesh, X: np.ndarray) -> DraftedPattern:
     return DraftedPattern(panels=panel_outlines(mesh, X))
 
 
-def panel_symmetry(mesh: GarmentMesh, X: np.ndarray, groups: list[list[str]]) -> list[dict]:
-    """How alike panels are that the source pattern cut alike: per group of
-    panel names, the spread (max - min) of their areas [m²] and perimeters [m]."""
-    by_name = {p.name: p for p in panel_outlines(mesh, X)}
-    out = []
-    for g in groups:
-        ps = [by_name[n] for n in g if n in by_name]
-        if len(ps) < 2:
-            continue
-        area = [abs(_signed_area(p.outline)) - sum(abs(_signed_area(h)) for h in p.holes) for p in ps]
-        per = [float(np.linalg.norm(p.outline - np.roll(p.outline, 1, axis=0), axis=1).sum()) for p in ps]
-        out.append(
+def mirror_pairs(mesh: GarmentMesh, x: np.ndarray) -> list[tuple[str, str]]:
+    """Panels that mirror each other across the body's plane of symmetry
+    (x = 0) in drape x: each panel paired with the one whose mirrored area
+    centroid is nearest (itself for a panel that straddles the plane; those are left out)."""
+    names = list(mesh.panel_names) or [str(i) for i in range(int(mesh.tri_panel.max()) + 1)]
+    c = np.array([x[mesh.tris[mesh.tri_panel == p]].mean(axis=(0, 1)) for p in range(len(names))])
+    mirrored = c * np.array([-1.0, 1.0, 1.0])
+    pairs = set()
+    for p in range(len(names)):
+        q = int(np.argmin(np.linalg.norm(c - mirrored[p], axis=1)))
+        if q != p:
+            pairs.add((names[min(p, q)], names[max(p, q)]))
+    return sorted(pairs)
+
+
+def panel_symmetry(mesh: GarmentMesh, X: np.ndarray, pairs: list[tuple[str, str]]) -> dict:
+    """Whether mirror panels stay mirror images: per pair the relative
+    difference of their areas and the difference of their perimeters [m]
+    (both 0 for congruent panels), and the largest of each."""
+    by = {p.name: p for p in panel_outlines(mesh, X)}
+
+    def area(p: Panel) -> float:
+        return abs(_signed_area(p.outline)) - sum(abs(_signed_area(h)) for h in p.holes)
+
+    def perimeter(p: Panel) -> float:
+        return float(np.linalg.norm(p.outline - np.roll(p.outline, 1, axis=0), axis=1).sum())
+
+    rows = []
+    for a, b in pairs:
+        pa, pb = by[a], by[b]
+        rows.append(
             {
-                "panels": [p.name for p in ps],
-                "area_m2": area,
-                "area_spread_rel": (max(area) - min(area)) / max(area),
-                "perimeter_m": per,
-                "perimeter_spread_m": max(per) - min(per),
+                "panels": [a, b],
+                "area_diff_rel": abs(area(pa) - area(pb)) / max(area(pa), area(pb)),
+                "perimeter_diff_m": abs(perimeter(pa) - perimeter(pb)),
             }
         )
-    return out
+    return {
+        "pairs": rows,
+        "max_area_diff_rel": max((r["area_diff_rel"] for r in rows), default=0.0),
+        "max_perimeter_diff_m": max((r["perimeter_diff_m"] for r in rows), default=0.0),
+    }
 
 
 def equalize_seams(mesh: GarmentMesh, X: np.ndarray, iters: int = 30) -> np.ndarray:

@@ -28,6 +28,7 @@ import sys
 import time
 from collections.abc import Iterator
 from dataclasses import replace
+from pathlib import Path
 
 from couture.bench import add_out_arg, source_commit, write_results
 
@@ -103,7 +104,11 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     runs = []
     a.out.mkdir(parents=True, exist_ok=True)
-    with solver_session(a.solvers, log_file=str(a.out / "adjust_nodes.log")) as (client, names):
+    import tempfile
+
+    log_file = str(Path(tempfile.gettempdir()) / "couture_bench_adjust_nodes.log")
+    print(f"solver node logs: {log_file}", file=sys.stderr)
+    with solver_session(a.solvers, log_file=log_file) as (client, names):
         for case_name in a.cases:
             path, edit, amount = CASES[case_name]
             design = load_design(path)
