@@ -669,12 +669,17 @@ def adjust(args: argparse.Namespace) -> int:
 
     design = load_design(args.pattern)
     edit, amount = ("hem", args.hem) if args.hem is not None else ("waist", args.waist)
+    if not math.isfinite(amount) or amount == 0 or (edit == "hem" and amount > 0):
+        raise ValueError(
+            f"--{edit} {amount!r}: "
+            + ("only shortening (negative, e.g. -0.15) is supported" if edit == "hem" else "a nonzero girth change [m]")
+        )
     bus = bus_config_from_args(args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     solvers = args.solver or ([] if bus.connect else ["newton"])
-    if not bus.connect:
-        logging.getLogger().setLevel(logging.WARNING)
+    if not args.verbose:
+        logging.getLogger().setLevel(logging.WARNING)  # ezdxf and the supervisor log at INFO
     with solver_session(solvers, bus if bus.connect else None, log_file=str(out / "nodes.log")) as (client, names):
         print(f"[adjust] solves go to {', '.join(names)}", file=sys.stderr, flush=True)
         case, counts = run_on_bus(

@@ -147,19 +147,17 @@ def panel_symmetry(mesh: GarmentMesh, X: np.ndarray, pairs: list[tuple[str, str]
         return float(np.linalg.norm(p.outline - np.roll(p.outline, 1, axis=0), axis=1).sum())
 
     rows = []
+    d_area: list[float] = []
+    d_per: list[float] = []
     for a, b in pairs:
         pa, pb = by[a], by[b]
-        rows.append(
-            {
-                "panels": [a, b],
-                "area_diff_rel": abs(area(pa) - area(pb)) / max(area(pa), area(pb)),
-                "perimeter_diff_m": abs(perimeter(pa) - perimeter(pb)),
-            }
-        )
+        d_area.append(abs(area(pa) - area(pb)) / max(area(pa), area(pb)))
+        d_per.append(abs(perimeter(pa) - perimeter(pb)))
+        rows.append({"panels": [a, b], "area_diff_rel": d_area[-1], "perimeter_diff_m": d_per[-1]})
     return {
         "pairs": rows,
-        "max_area_diff_rel": max((r["area_diff_rel"] for r in rows), default=0.0),
-        "max_perimeter_diff_m": max((r["perimeter_diff_m"] for r in rows), default=0.0),
+        "max_area_diff_rel": max(d_area, default=0.0),
+        "max_perimeter_diff_m": max(d_per, default=0.0),
     }
 
 
