@@ -23,7 +23,7 @@ from schemas.design import Design
 
 from .fixed_point import MANNEQUIN_HEIGHT, AdjustResult, Simulate, adjust
 from .geometry import edges2, frames3, stretch
-from .seams import drafted_from_mesh, mirror_pairs, panel_symmetry, seam_lengths
+from .seams import drafted_from_mesh, mirror_asymmetry, seam_lengths
 from .target import Target, hem_edit, waist_edit
 
 EDITS = ("hem", "waist")
@@ -107,10 +107,9 @@ class CaseResult:
                 },
             },
             "symmetry": {
-                "mirror_pairs": mirror_pairs(m, self.x_source),
-                "source": panel_symmetry(m, m.X, mirror_pairs(m, self.x_source)),
-                "flattening_only": panel_symmetry(m, r.X_flat, mirror_pairs(m, self.x_source)),
-                "adjusted": panel_symmetry(m, r.X, mirror_pairs(m, self.x_source)),
+                "source": mirror_asymmetry(m, m.X, self.x_source),
+                "flattening_only": mirror_asymmetry(m, r.X_flat, self.x_source),
+                "adjusted": mirror_asymmetry(m, r.X, self.x_source),
             },
             "pattern_change": {
                 "mean_stretch_adjusted_vs_source": float(stretch(edges2(r.X, m.tris), edges2(m.X, m.tris)).mean()),

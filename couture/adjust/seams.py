@@ -119,46 +119,58 @@ def drafted_from_mesh(mesh: GarmentMesh, X: np.ndarray) -> DraftedPattern:
     return DraftedPattern(panels=panel_outlines(mesh, X))
 
 
-def mirror_pairs(mesh: GarmentMesh, x: np.ndarray) -> list[tuple[str, str]]:
-    """Panels that mirror each other across the body's plane of symmetry
-    (x = 0) in drape x: each panel paired with the one whose mirrored area
-    centroid is nearest (itself for a panel that straddles the plane; those are left out)."""
-    names = list(mesh.panel_names) or [str(i) for i in range(int(mesh.tri_panel.max()) + 1)]
-    c = np.array([x[mesh.tris[mesh.tri_panel == p]].mean(axis=(0, 1)) for p in range(len(names))])
-    mirrored = c * np.array([-1.0, 1.0, 1.0])
-    pairs = set()
+def mirror_asymmetry(mesh: GarmentMesh, X: np.ndarray, x_drape: np.ndarray, *, max_gap: float = 0.01) -> list[dict]:
+    """How far pattern X is from left-right symmetric, judged through a drape
+    on the symmetric mannequin (plane x = 0): each vertex's mirror image on
+    the drape lands in some panel (itself for a panel on the plane, like a
+    dress front; its partner for a side panel); its pattern point there (by
+    barycentric coordinates) is where a symmetric pattern has the vertex's
+    mirror. Per panel: the partner, and the RMS and largest distance [m]
+    left after the best reflection plus rigid motion maps the panel's
+    vertices onto those points. On the source pattern these are the drape's
+    and mesh's own asymmetry (the baseline); vertices whose mirror image is
+    more than ``max_gap`` from the drape are left out."""
+    from .geometry import SurfaceDistance
+
+    vp = vertex_panels(mesh)
+    names = list(mesh.panel_names) or [str(i) for i in range(int(vp.max()) + 1)]
+    surf = SurfaceDistance(x_drape, mesh.tris)
+    out = []
     for p in range(len(names)):
-        q = int(np.argmin(np.linalg.norm(c - mirrored[p], axis=1)))
-        if q != p:
-            pairs.add((names[min(p, q)], names[max(p, q)]))
-    return sorted(pairs)
-
-
-def panel_symmetry(mesh: GarmentMesh, X: np.ndarray, pairs: list[tuple[str, str]]) -> dict:
-    """Whether mirror panels stay mirror images: per pair the relative
-    difference of their areas and the difference of their perimeters [m]
-    (both 0 for congruent panels), and the largest of each."""
-    by = {p.name: p for p in panel_outlines(mesh, X)}
-
-    def area(p: Panel) -> float:
-        return abs(_signed_area(p.outline)) - sum(abs(_signed_area(h)) for h in p.holes)
-
-    def perimeter(p: Panel) -> float:
-        return float(np.linalg.norm(p.outline - np.roll(p.outline, 1, axis=0), axis=1).sum())
-
-    rows = []
-    d_area: list[float] = []
-    d_per: list[float] = []
-    for a, b in pairs:
-        pa, pb = by[a], by[b]
-        d_area.append(abs(area(pa) - area(pb)) / max(area(pa), area(pb)))
-        d_per.append(abs(perimeter(pa) - perimeter(pb)))
-        rows.append({"panels": [a, b], "area_diff_rel": d_area[-1], "perimeter_diff_m": d_per[-1]})
-    return {
-        "pairs": rows,
-        "max_area_diff_rel": max(d_area, default=0.0),
-        "max_perimeter_diff_m": max(d_per, default=0.0),
-    }
+        v = np.nonzero(vp == p)[0]
+        q, d, f = surf.closest(x_drape[v] * np.array([-1.0, 1.0, 1.0]))
+        fp = mesh.tri_panel[f]
+        partner = int(np.bincount(fp).argmax())
+        ok = (fp == partner) & (d < max_gap)
+        if ok.sum() < 3:
+            continue
+        v, q, f = v[ok], q[ok], f[ok]
+        tri = mesh.tris[f]
+        a, b, c = x_drape[tri[:, 0]], x_drape[tri[:, 1]], x_drape[tri[:, 2]]
+        # barycentric coordinates of q in its face
+        v0, v1, v2 = b - a, c - a, q - a
+        d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
+        d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
+        den = d00 * d11 - d01 * d01
+        w1 = (d11 * d20 - d01 * d21) / den
+        w2 = (d00 * d21 - d01 * d20) / den
+        Y = (1 - w1 - w2)[:, None] * X[tri[:, 0]] + w1[:, None] * X[tri[:, 1]] + w2[:, None] * X[tri[:, 2]]
+        P = X[v]
+        cp, cy = P.mean(0), Y.mean(0)
+        U, _, Vt = np.linalg.svd((P - cp).T @ (Y - cy))
+        D = np.diag([1.0, -np.sign(np.linalg.det(U @ Vt))])  # the best reflection (det -1): a mirror image
+        R = (U @ D @ Vt).T
+        r = np.linalg.norm((P - cp) @ R.T + cy - Y, axis=1)
+        out.append(
+            {
+                "panel": names[p],
+                "partner": names[partner],
+                "vertices": int(len(v)),
+                "rms_m": float(np.sqrt((r**2).mean())),
+                "max_m": float(r.max()),
+            }
+        )
+    return out
 
 
 def equalize_seams(mesh: GarmentMesh, X: np.ndarray, iters: int = 30) -> np.ndarray:
