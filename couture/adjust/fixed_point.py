@@ -65,6 +65,8 @@ class Iteration:
     """[m] largest length difference between the two sides of a seam in the simulated pattern"""
     seam_mismatch_raw_m: float = 0.0
     """[m] the same before the seams were equalized (as the embedding left it)"""
+    flipped_triangles: int = 0
+    """pattern triangles turned clockwise by the embedding (0: a valid pattern)"""
 
 
 @dataclass
@@ -183,6 +185,7 @@ def adjust(
             update_s=update_s,
             seam_mismatch_m=max_seam_mismatch(mesh, X),
             seam_mismatch_raw_m=raw_mismatch,
+            flipped_triangles=int((np.linalg.det(edges2(X, tris)) <= 0).sum()),
         )
         history.append(it)
         patterns.append(X.copy())
@@ -194,6 +197,7 @@ def adjust(
             f"{'' if sim.converged else ' (NOT converged: ' + (sim.diagnosis or '?') + ')'}, "
             f"solve {sim.wall_time_s:.1f} s; seams differ by {1e3 * it.seam_mismatch_m:.1f} mm"
             + (f" ({1e3 * raw_mismatch:.1f} mm before equalizing)" if raw_mismatch != it.seam_mismatch_m else "")
+            + (f"; {it.flipped_triangles} triangles FLIPPED" if it.flipped_triangles else "")
         )
         if it.stretch_mean >= stop_stretch:
             stopped = f"mean stretch {it.stretch_mean:.4f} >= {stop_stretch}"
