@@ -65,6 +65,32 @@ class CaseResult:
     result: AdjustResult
     source_solve: dict
     timings: dict = field(default_factory=dict)
+    gradient: list = field(default_factory=list)
+    """:class:`~couture.adjust.gradient.GradientStep` of the gradient steps after the fixed point (none by default)"""
+    X_final: np.ndarray | None = None
+    """the pattern written out: after the gradient steps, else the fixed point's"""
+    x_final: np.ndarray | None = None
+
+    @property
+    def X_out(self) -> np.ndarray:
+        return self.result.X if self.X_final is None else self.X_final
+
+    @property
+    def x_out(self) -> np.ndarray:
+        return self.result.x if self.x_final is None else self.x_final
+
+    def _final_metrics(self) -> dict:
+        from .geometry import hausdorff
+
+        m = self.mesh
+        H = hausdorff(self.target.x, self.x_out, m.tris)
+        return {
+            "stretch": float(stretch(frames3(self.target.x, m.tris), frames3(self.x_out, m.tris)).mean()),
+            "hausdorff_pct": 100 * H["hausdorff"] / MANNEQUIN_HEIGHT,
+            "hausdorff_mm": 1e3 * H["hausdorff"],
+            "mean_distance_mm": 1e3 * H["mean"],
+            "gradient_steps_taken": sum(1 for g in self.gradient if g.accepted),
+        }
 
     def summary(self) -> dict:
         """JSON-able numbers: per iteration, flattening-only against adjusted, seams, symmetry."""
@@ -90,6 +116,8 @@ class CaseResult:
                 "hausdorff_mm": 1e3 * best.hausdorff_m,
                 "mean_distance_mm": 1e3 * best.mean_distance_m,
             },
+            "gradient_steps": [asdict(g) for g in self.gradient],
+            "final": self._final_metrics(),
             "updates": len(r.history) - 1,
             "stopped": r.stopped,
             "adjust_wall_s": r.wall_time_s,
@@ -97,24 +125,27 @@ class CaseResult:
             "seams": {
                 "source": seam_lengths(m, m.X),
                 "flattening_only": seam_lengths(m, r.X_flat),
-                "adjusted": seam_lengths(m, r.X),
+                "adjusted": seam_lengths(m, self.X_out),
                 "max_mismatch_mm": {
                     "source": 1e3 * max((abs(s["mismatch_m"]) for s in seam_lengths(m, m.X)), default=0.0),
                     "flattening_only": 1e3
                     * max((abs(s["mismatch_m"]) for s in seam_lengths(m, r.X_flat)), default=0.0),
                     "adjusted_before_equalizing": 1e3 * r.history[r.best].seam_mismatch_raw_m,
-                    "adjusted": 1e3 * max((abs(s["mismatch_m"]) for s in seam_lengths(m, r.X)), default=0.0),
+                    "adjusted": 1e3 * max((abs(s["mismatch_m"]) for s in seam_lengths(m, self.X_out)), default=0.0),
                 },
             },
             "symmetry": {
                 "source": mirror_asymmetry(m, m.X, self.x_source),
                 "flattening_only": mirror_asymmetry(m, r.X_flat, self.x_source),
-                "adjusted": mirror_asymmetry(m, r.X, self.x_source),
+                "adjusted": mirror_asymmetry(m, self.X_out, self.x_source),
             },
             "pattern_change": {
-                "mean_stretch_adjusted_vs_source": float(stretch(edges2(r.X, m.tris), edges2(m.X, m.tris)).mean()),
+                "mean_stretch_adjusted_vs_source": float(
+                    stretch(edges2(self.X_out, m.tris), edges2(m.X, m.tris)).mean()
+                ),
                 "area_ratio_adjusted_vs_source": float(
-                    np.abs(np.linalg.det(edges2(r.X, m.tris))).sum() / np.abs(np.linalg.det(edges2(m.X, m.tris))).sum()
+                    np.abs(np.linalg.det(edges2(self.X_out, m.tris))).sum()
+                    / np.abs(np.linalg.det(edges2(m.X, m.tris))).sum()
                 ),
                 "target_vs_source_drape_stretch": float(
                     stretch(frames3(self.target.x, m.tris), frames3(self.x_source, m.tris)).mean()
@@ -132,9 +163,12 @@ def run_case(
     vertices: int | None = None,
     name: str = "design",
     log: Callable[[str], None] | None = print,
+    gradient_steps: int = 0,
     **adjust_kw,
 ) -> CaseResult:
-    """Mesh, drape from the placement, edit, adjust; every solve through ``simulate_for(mesh)``."""
+    """Mesh, drape from the placement, edit, adjust (then ``gradient_steps``
+    Gauss-Newton steps, :mod:`couture.adjust.gradient`); every solve through
+    ``simulate_for(mesh)``."""
     say = log or (lambda s: None)
     t0 = time.perf_counter()
     mesh = garment_mesh(design, vertices)
@@ -150,6 +184,24 @@ def run_case(
     t_target = time.perf_counter() - t1
     say(f"[adjust] target: {edit} {amount:+.3f} m asked, {target.achieved:+.4f} m on the target")
     result = adjust(mesh, target.x, simulate, x_source=src.x, log=log, **adjust_kw)
+    steps: list = []
+    X_final = x_final = None
+    t2 = time.perf_counter()
+    if gradient_steps > 0:
+        from .gradient import gradient_polish
+
+        X_final, x_final, steps = gradient_polish(
+            mesh,
+            design,
+            result.X,
+            result.x,
+            target.x,
+            simulate,
+            steps=gradient_steps,
+            equalize=adjust_kw.get("equalize", True),
+            log=log,
+        )
+    t_grad = time.perf_counter() - t2
     return CaseResult(
         design_name=name,
         edit=edit,
@@ -158,6 +210,9 @@ def run_case(
         x_source=src.x,
         target=target,
         result=result,
+        gradient=steps,
+        X_final=X_final,
+        x_final=x_final,
         source_solve={
             "solver": src.solver,
             "residual": src.residual,
@@ -169,7 +224,8 @@ def run_case(
             "source_drape": src.wall_time_s,
             "target": t_target,
             "adjust": result.wall_time_s,
-            "edit_to_pattern": t_target + result.wall_time_s,
+            "gradient": t_grad,
+            "edit_to_pattern": t_target + result.wall_time_s + t_grad,
             "total": time.perf_counter() - t0,
         },
     )
@@ -184,7 +240,7 @@ def write_outputs(case: CaseResult, out: str | Path) -> list[Path]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     m, r = case.mesh, case.result
-    adjusted = drafted_from_mesh(m, r.X)
+    adjusted = drafted_from_mesh(m, case.X_out)
     paths = [out / "pattern.dxf", out / "pattern.svg", out / "pattern.pdf", out / "flattened.svg"]
     export_dxf(adjusted, paths[0])
     export_svg(adjusted, paths[1])
@@ -200,20 +256,25 @@ def write_outputs(case: CaseResult, out: str | Path) -> list[Path]:
     }
     (out / "panels.json").write_text(json.dumps(panels))
     paths.append(out / "panels.json")
-    for nm, x in (("source", case.x_source), ("target", case.target.x), ("adjusted", r.x), ("flattened", r.x_flat)):
+    for nm, x in (
+        ("source", case.x_source),
+        ("target", case.target.x),
+        ("adjusted", case.x_out),
+        ("flattened", r.x_flat),
+    ):
         p = out / f"drape_{nm}.obj"
         _write_obj(p, x, m.tris)
         paths.append(p)
     np.savez_compressed(
         out / "adjust_mesh.npz",
         X_source=m.X,
-        X_adjusted=r.X,
+        X_adjusted=case.X_out,
         X_flattened=r.X_flat,
         tris=m.tris,
         tri_panel=m.tri_panel,
         x_source=case.x_source,
         x_target=case.target.x,
-        x_adjusted=r.x,
+        x_adjusted=case.x_out,
     )
     paths.append(out / "adjust_mesh.npz")
     from couture.jsonout import dumps
@@ -243,17 +304,20 @@ def plot_case(case: CaseResult, path: str | Path) -> None:
     m, r = case.mesh, case.result
     surf = SurfaceDistance(case.target.x, m.tris)
     fig = plt.figure(figsize=(14, 7))
-    views = [("flattening only", r.x_flat, r.history[0]), ("adjusted", r.x, r.history[r.best])]
-    for col, (title, x, it) in enumerate(views):
+    fin = case._final_metrics()
+    label = "adjusted" + (f" + {fin['gradient_steps_taken']} gradient steps" if fin["gradient_steps_taken"] else "")
+    views = [
+        ("flattening only", r.x_flat, (r.history[0].hausdorff_pct, r.history[0].stretch_mean)),
+        (label, case.x_out, (fin["hausdorff_pct"], fin["stretch"])),
+    ]
+    for col, (title, x, (h_pct, s_mean)) in enumerate(views):
         _, d, _ = surf.closest(x)
         for row, (ax_h, lab) in enumerate(((0, "front (x-y)"), (2, "side (z-y)"))):
             ax = fig.add_subplot(2, 4, 1 + col + 4 * row)
             ax.triplot(case.target.x[:, ax_h], case.target.x[:, 1], m.tris, color="0.75", lw=0.3)
             sc = ax.scatter(x[:, ax_h], x[:, 1], c=1e3 * d, s=3, cmap="magma_r", vmin=0, vmax=30)
             ax.set_aspect("equal")
-            ax.set_title(
-                f"{title}, {lab}\nHausdorff {it.hausdorff_pct:.2f} % h, stretch {it.stretch_mean:.3f}", fontsize=9
-            )
+            ax.set_title(f"{title}, {lab}\nHausdorff {h_pct:.2f} % h, stretch {s_mean:.3f}", fontsize=9)
             if col == 1:
                 fig.colorbar(sc, ax=ax, label="distance to target [mm]", shrink=0.8)
     from couture.pattern.io import layout
@@ -263,7 +327,7 @@ def plot_case(case: CaseResult, path: str | Path) -> None:
     for X, c, lab in (
         (m.X, "tab:green", "source pattern"),
         (r.X_flat, "tab:red", "flattening only"),
-        (r.X, "tab:blue", "adjusted"),
+        (case.X_out, "tab:blue", label),
     ):
         for i, p in enumerate(drafted_from_mesh(m, X).panels):
             P = np.vstack([p.outline, p.outline[:1]]) + shift[p.name]

@@ -103,6 +103,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--vertices", nargs="+", type=int, default=[400, 1600], help="coarse mesh sizes to run")
     ap.add_argument("--iters", type=int, default=5, help="at most this many fixed-point updates")
     ap.add_argument(
+        "--gradient-steps",
+        type=int,
+        default=2,
+        help="Gauss-Newton steps with the design sensitivity after the fixed point (reported apart; 0: none)",
+    )
+    ap.add_argument(
         "--png-all",
         action="store_true",
         help="a PNG per run (default: one per case, the first solver at the largest size)",
@@ -122,7 +128,15 @@ def main(argv: list[str] | None = None) -> int:
                 for solver in names:
                     print(f"\n== {case_name} ({edit} {amount:+.2f} m), {n} vertices, {solver}", flush=True)
                     case, counts = run_on_bus(
-                        client, [solver], design, edit, amount, vertices=n, name=case_name, max_iters=a.iters
+                        client,
+                        [solver],
+                        design,
+                        edit,
+                        amount,
+                        vertices=n,
+                        name=case_name,
+                        max_iters=a.iters,
+                        gradient_steps=a.gradient_steps,
                     )
                     png = None
                     if a.png_all or (solver == names[0] and n == max(a.vertices)):
@@ -140,26 +154,32 @@ def main(argv: list[str] | None = None) -> int:
                         vertices_asked=n,
                         png=None if png is None else png.name,
                     )
-                    t = s["timings_s"]["edit_to_pattern"]
-                    ad = s["adjusted"]
-                    s["goal_met"] = bool(
+                    ad, fin, ts = s["adjusted"], s["final"], s["timings_s"]
+                    s["goal_met"] = bool(  # the fixed point alone (Bartle)
                         ad["hausdorff_pct"] <= GOAL["hausdorff_pct"]
                         and ad["stretch"] >= GOAL["stretch"]
                         and ad["iteration"] <= GOAL["iterations"]
-                        and t <= GOAL["seconds"]
+                        and ts["target"] + ts["adjust"] <= GOAL["seconds"]
+                    )
+                    s["goal_met_with_gradient"] = bool(
+                        fin["hausdorff_pct"] <= GOAL["hausdorff_pct"]
+                        and fin["stretch"] >= GOAL["stretch"]
+                        and ad["iteration"] <= GOAL["iterations"]
+                        and ts["edit_to_pattern"] <= GOAL["seconds"]
                     )
                     runs.append(s)
     print(
-        f"\n{'case':12} {'solver':15} {'verts':>5} {'flat H%':>7} {'flat S':>6} {'adj H%':>6} {'adj S':>6} "
-        f"{'it':>2} {'edit->pattern s':>15} {'seam mm':>12} goal"
+        f"\n{'case':12} {'solver':15} {'verts':>5} {'flat H%':>7} {'flat S':>6} {'fp H%':>6} {'fp S':>6} "
+        f"{'it':>2} {'fp s':>5} {'goal':>4} | {'+grad H%':>8} {'S':>6} {'total s':>7} {'goal':>4} | seam mm"
     )
     for s in runs:
-        sm = s["seams"]["max_mismatch_mm"]
+        sm, ts, fin = s["seams"]["max_mismatch_mm"], s["timings_s"], s["final"]
         print(
             f"{s['case']:12} {s['solver_node']:15} {s['vertices']:5d} {s['flattening_only']['hausdorff_pct']:7.2f} "
             f"{s['flattening_only']['stretch']:6.3f} {s['adjusted']['hausdorff_pct']:6.2f} {s['adjusted']['stretch']:6.3f} "
-            f"{s['adjusted']['iteration']:2d} {s['timings_s']['edit_to_pattern']:15.1f} "
-            f"{sm['flattening_only']:5.1f}->{sm['adjusted']:4.1f} {'yes' if s['goal_met'] else 'NO'}"
+            f"{s['adjusted']['iteration']:2d} {ts['target'] + ts['adjust']:5.1f} {'yes' if s['goal_met'] else 'NO':>4} | "
+            f"{fin['hausdorff_pct']:8.2f} {fin['stretch']:6.3f} {ts['edit_to_pattern']:7.1f} "
+            f"{'yes' if s['goal_met_with_gradient'] else 'NO':>4} | {sm['flattening_only']:5.1f}->{sm['adjusted']:4.1f}"
         )
     out = write_results(
         a.out,
