@@ -196,6 +196,45 @@ def _parser() -> argparse.ArgumentParser:
     ex.add_argument("--sheet-width", type=float, default=1.2, metavar="M", help="[m] rows of pieces on the sheet (1.2)")
     ex.add_argument("--name", default=None, help="design name on the labels and files (default: the file's stem)")
     ex.add_argument("--size", default=None, help="size on the labels (default: the sloper's girths, e.g. B88 W70)")
+    ad = sub.add_parser(
+        "adjust",
+        help="direct 3D edit of a draped design (hem, waist) and its physics-adjusted pattern (Bartle 2016)",
+        description="Drape a design on solver nodes, edit the drape in 3D (shorten the hem, loosen or tighten\n"
+        "the waist) into a target garment, and adjust the pattern until its re-simulated drape matches\n"
+        "the target. Every solve is a `solve` request over the bus: without --connect the solver nodes\n"
+        "(--solver, repeatable; two names fan the solves out over two processes) are started here.\n"
+        "Writes pattern.dxf/.svg/.pdf (adjusted), flattened.svg, panels.json, drape_*.obj, adjust.json\n"
+        "and adjust.png into --out.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ad.add_argument("pattern", help="pattern JSON (couture/design/v1)")
+    edit = ad.add_mutually_exclusive_group(required=True)
+    edit.add_argument("--hem", type=float, metavar="DH", help="[m] hem change; negative shortens (e.g. -0.15)")
+    edit.add_argument("--waist", type=float, metavar="DG", help="[m] waist girth change; positive loosens (e.g. +0.04)")
+    ad.add_argument("--out", required=True, help="output directory")
+    ad.add_argument(
+        "--solver",
+        action="append",
+        default=None,
+        choices=["kinetic", "newton", "verlet"],
+        help="solver node(s) to start and fan the solves out to (repeatable; default newton); with --connect: "
+        "which live solver-<name> nodes to use (default every live one)",
+    )
+    ad.add_argument(
+        "--vertices", type=int, default=None, help="coarse mesh size (default the design's resolution.coarse_vertices)"
+    )
+    ad.add_argument("--iters", type=int, default=5, help="at most this many fixed-point updates")
+    ad.add_argument("--stop-stretch", type=float, default=0.995, help="stop once the mean stretch (eq. 8) reaches this")
+    ad.add_argument("--no-equalize", action="store_true", help="leave the seam lengths as the embedding makes them")
+    ad.add_argument(
+        "--gradient-steps",
+        type=int,
+        default=0,
+        metavar="N",
+        help="after the fixed point, up to N Gauss-Newton steps with couture's design sensitivity (each "
+        "re-simulated on the solver nodes, kept only if it lowers the Hausdorff distance); default 0",
+    )
+    add_bus_args(ad)
 
     from couture.bus.secure import DEFAULT_HOSTS, DEFAULT_WRITERS, STANDARD_NODES
 
@@ -371,6 +410,8 @@ def _dispatch(args: argparse.Namespace) -> int:
 
     if args.cmd == "export":
         return export_pattern(args)
+    if args.cmd == "adjust":
+        return adjust(args)
 
     if args.cmd == "bench":
         try:
@@ -733,6 +774,63 @@ def export_pattern(args: argparse.Namespace) -> int:
     for p in pieces:
         print(f"  {p.name}: {p.labels[-1]}, {len(p.notches)} notches, {len(p.drills)} drill holes")
     print(f"wrote into {out}: {', '.join(written)}")
+def adjust(args: argparse.Namespace) -> int:
+    """``couture adjust``: see its --help."""
+    from couture.adjust.pipeline import plot_case, write_outputs
+    from couture.bench.adjust import run_on_bus, solver_session
+    from couture.bus import bus_config_from_args
+    from couture.client import load_design
+
+    design = load_design(args.pattern)
+    edit, amount = ("hem", args.hem) if args.hem is not None else ("waist", args.waist)
+    if not math.isfinite(amount) or amount == 0 or (edit == "hem" and amount > 0):
+        raise ValueError(
+            f"--{edit} {amount!r}: "
+            + ("only shortening (negative, e.g. -0.15) is supported" if edit == "hem" else "a nonzero girth change [m]")
+        )
+    bus = bus_config_from_args(args)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    solvers = args.solver or ([] if bus.connect else ["newton"])
+    if not args.verbose:
+        logging.getLogger().setLevel(logging.WARNING)  # ezdxf and the supervisor log at INFO
+    with solver_session(solvers, bus if bus.connect else None, log_file=str(out / "nodes.log")) as (client, names):
+        print(f"[adjust] solves go to {', '.join(names)}", file=sys.stderr, flush=True)
+        case, counts = run_on_bus(
+            client,
+            names,
+            design,
+            edit,
+            amount,
+            vertices=args.vertices,
+            name=Path(args.pattern).stem,
+            max_iters=args.iters,
+            stop_stretch=args.stop_stretch,
+            equalize=not args.no_equalize,
+            gradient_steps=args.gradient_steps,
+            log=lambda s: print(s, file=sys.stderr, flush=True),
+        )
+    write_outputs(case, out)
+    plot_case(case, out / "adjust.png")
+    s = case.summary()
+    print(
+        f"[adjust] {s['design']}: flattening only: Hausdorff {s['flattening_only']['hausdorff_pct']:.2f} % of height, "
+        f"stretch {s['flattening_only']['stretch']:.4f}; adjusted (iteration {s['adjusted']['iteration']}): "
+        f"Hausdorff {s['adjusted']['hausdorff_pct']:.2f} %, stretch {s['adjusted']['stretch']:.4f}; "
+        + (
+            f"after {s['final']['gradient_steps_taken']} gradient steps: Hausdorff {s['final']['hausdorff_pct']:.2f} %, "
+            f"stretch {s['final']['stretch']:.4f}; "
+            if args.gradient_steps
+            else ""
+        )
+        + f"edit to pattern {s['timings_s']['edit_to_pattern']:.1f} s; solves per node {counts}; "
+        f"seams differ by at most {s['seams']['max_mismatch_mm']['adjusted']:.2f} mm",
+        file=sys.stderr,
+    )
+    print(
+        f"[adjust] wrote {out}/pattern.dxf, .svg, .pdf, panels.json, drape_*.obj, adjust.json, adjust.png",
+        file=sys.stderr,
+    )
     return 0
 
 
