@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import enum
 import importlib
+import json
 import logging
 import math
 import pkgutil
@@ -201,12 +202,46 @@ def _parser() -> argparse.ArgumentParser:
     gp = sub.add_parser("golden", help="golden recordings: make or check recordings/<case>.mcap", add_help=False)
     gp.add_argument("rest", nargs=argparse.REMAINDER)
 
+    bo = sub.add_parser("bodies", help="bodies a design can name: list them (requested vs measured), or make the graded sizes")
+    bsub = bo.add_subparsers(dest="bodies_cmd", required=True)
+    bl = bsub.add_parser("list", help="print every body with its requested and measured ISO 8559-1 measurements")
+    bl.add_argument("--json", action="store_true", help="print the table as JSON")
+    bm = bsub.add_parser(
+        "make", help="fit the graded sizes with Anny and write couture/assets/bodies (needs couture[bodies])"
+    )
+    bm.add_argument("names", nargs="*", help="sizes to make (default: every size of the table)")
+    bm.add_argument("--out", default=None, help="directory (default: couture/assets/bodies)")
+
     bp = sub.add_parser(
         "bench", help="benchmarks: NAME writes NAME.json (and its plots) to --out DIR (default bench/results/)"
     )
     bp.add_argument("which", choices=BENCHES)
     bp.add_argument("args", nargs=argparse.REMAINDER, help="passed to the benchmark, e.g. --out DIR")
     return p
+
+
+def bodies_command(args: argparse.Namespace) -> int:
+    import couture.bodies as bodies
+    from couture.bodies.measure import MEASURES
+
+    if args.bodies_cmd == "make":
+        from couture.bodies.make import make_graded
+
+        make_graded(Path(args.out) if args.out else bodies.BODIES_DIR, args.names or None)
+        bodies.index.cache_clear()
+    rows = bodies.table()
+    if getattr(args, "json", False):
+        print(json.dumps(rows, indent=2))
+        return 0
+    print("requested / measured [cm] (ISO 8559-1: stature, bust, waist, hip girths, inside leg)")
+    print(f"{'body':8s}" + "".join(f"{k:>22s}" for k in MEASURES))
+    for r in rows:
+        cells = []
+        for k in MEASURES:
+            m = 100 * r["measured"][k]
+            cells.append(f"{m:.1f}" if r["requested"] is None else f"{100 * r['requested'][k]:.1f} / {m:.1f}")
+        print(f"{r['name']:8s}" + "".join(f"{c:>22s}" for c in cells))
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -325,6 +360,9 @@ def _dispatch(args: argparse.Namespace) -> int:
             verbose=args.verbose or args.drape_verbose,
             name=args.name,
         )
+
+    if args.cmd == "bodies":
+        return bodies_command(args)
 
     if args.cmd == "bench":
         try:
