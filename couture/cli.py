@@ -202,7 +202,9 @@ def _parser() -> argparse.ArgumentParser:
     gp = sub.add_parser("golden", help="golden recordings: make or check recordings/<case>.mcap", add_help=False)
     gp.add_argument("rest", nargs=argparse.REMAINDER)
 
-    bo = sub.add_parser("bodies", help="bodies a design can name: list them (requested vs measured), or make the graded sizes")
+    bo = sub.add_parser(
+        "bodies", help="bodies a design can name: list them (requested vs measured), or make the graded sizes"
+    )
     bsub = bo.add_subparsers(dest="bodies_cmd", required=True)
     bl = bsub.add_parser("list", help="print every body with its requested and measured ISO 8559-1 measurements")
     bl.add_argument("--json", action="store_true", help="print the table as JSON")

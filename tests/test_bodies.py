@@ -84,8 +84,8 @@ def test_girth_of_an_ellipse_prism_is_its_perimeter():
 
 def test_unknown_body_is_refused_naming_it():
     from couture.cloth.model import ClothModel, Scene
-    from couture.pattern.validate import validate
     from couture.mesh import grid_sheet
+    from couture.pattern.validate import validate
     from couture.solvers.service import SolveService, scene_from_design
 
     bad = Design(body=Body(name="XXXL"))

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 ASSETS = Path(__file__).resolve().parents[1] / "assets"
 BODIES_DIR = ASSETS / "bodies"
@@ -76,43 +77,36 @@ def sections_path(name: str = "default") -> Path:
     return DEFAULT_SECTIONS if check_name(name) == "default" else BODIES_DIR / f"{name}.sections.npz"
 
 
-def load_mesh(name: str = "default"):
-    """(vertices (n, 3), faces (m, 3)) of a body [m], y up."""
+def _read(path: Path, process: bool):
     import numpy as np
     import trimesh
 
-    mesh = trimesh.load(str(obj_path(name)), force="mesh", process=True)
+    mesh: Any = trimesh.load(str(path), force="mesh", process=process)
     return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
 
 
-def table() -> list[dict]:
-    """One row per body: name, then requested and measured values [m] (the
-    default has no request: its measurements are its own)."""
+def load_mesh(name: str = "default"):
+    """(vertices (n, 3), faces (m, 3)) of a body [m], y up."""
+    return _read(obj_path(name), process=True)
+
+
+def table() -> list[dict[str, Any]]:
+    """One row per body: name, requested and measured values [m] and their
+    difference (the default has no request: its measurements are its own)."""
     from couture.bodies.measure import MEASURES
 
-    rows = []
-    default = {
-        "name": "default",
-        "requested": None,
-        "measured": _default_measured(),
-    }
-    rows.append(default)
+    rows: list[dict[str, Any]] = [{"name": "default", "requested": None, "measured": _default_measured()}]
     for name, rec in index()["bodies"].items():
         rows.append({"name": name, "requested": rec["requested"], "measured": rec["measured"]})
     for r in rows:
-        r["error"] = (
-            None
-            if r["requested"] is None
-            else {k: round(r["measured"][k] - r["requested"][k], 5) for k in MEASURES}
-        )
+        req, got = r["requested"], r["measured"]
+        r["error"] = None if req is None else {k: round(got[k] - req[k], 5) for k in MEASURES}
     return rows
 
 
 @lru_cache(maxsize=1)
 def _default_measured() -> dict[str, float]:
-    import trimesh
-
     from couture.bodies.measure import measure
 
-    m = trimesh.load(str(DEFAULT_OBJ), process=False)
-    return {k: round(v, 5) for k, v in measure(m.vertices, m.faces).items()}
+    V, F = _read(DEFAULT_OBJ, process=False)
+    return {k: round(v, 5) for k, v in measure(V, F).items()}

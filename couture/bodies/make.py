@@ -102,9 +102,7 @@ def _measures_torch(V, F):
     a, b = V[int(crotch_edge[0])], V[int(crotch_edge[1])]
     crotch_y = a[1] + (0.0 - a[0]) / (b[0] - a[0]) * (b[1] - a[1])
     floor = V[:, 1].min()
-    return torch.stack(
-        [V[:, 1].max() - floor, girth(lm.bust), girth(lm.waist), girth(lm.hip), crotch_y - floor]
-    )
+    return torch.stack([V[:, 1].max() - floor, girth(lm.bust), girth(lm.waist), girth(lm.hip), crotch_y - floor])
 
 
 def fit_body(

@@ -75,6 +75,7 @@ RESOLUTION_LIMITS: dict[str, Limit] = {
 }
 """Resolution field -> allowed target vertex counts (a few hundred to the largest meshes measured, 40k, x6)"""
 
+
 def check_body(name: str) -> None:
     """A body a design may name ('default' or a graded size of couture.bodies);
     PatternError naming it and the bodies otherwise."""
