@@ -143,3 +143,49 @@ def test_skirt_redrapes_on_a_larger_body_from_its_drape():
     assert phi_before.min() < -offset  # the drape on the default body lies inside XL ...
     assert phi_after.min() > -offset, phi_after.min()  # ... the re-drape does not
     assert time.perf_counter() - t0 < 120
+
+
+def test_placement_wraps_the_chosen_body():
+    """A skirt placed for XL starts outside XL (XL's own sections); the same
+    skirt placed for the default body would start inside XL."""
+    from couture.cloth.body import load_mannequin_sdf
+    from couture.remesh.service import RemeshService
+
+    xl = load_mannequin_sdf(verbose=False, name="XL")
+    phi = {}
+    for name in ("default", "XL"):
+        d = Design(sloper=Sloper(kind="skirt"), body=Body(name=name), resolution=Resolution(coarse_vertices=400))
+        up = RemeshService().set_design(d, 1)[0]
+        phi[name] = xl.phi_grad(up.mesh.x0)[0].min()
+    assert phi["XL"] > 0.0 > -0.01 > phi["default"], phi
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_body_change_on_the_bus_redrapes_on_the_new_body():
+    """Across processes: the body rides in the pattern message; the solver node
+    re-drapes the skirt on XL (not crossing it) after a body-only change."""
+    import uuid
+
+    from couture import supervisor
+    from couture.bus import BusConfig, free_port
+    from couture.client import Client
+    from couture.cloth.body import load_mannequin_sdf
+
+    session = f"b{uuid.uuid4().hex[:8]}"
+    nodes = [n for n in supervisor.default_nodes(solvers=["kinetic"], ui=False) if n.name != "sensitivity"]
+    cfg = supervisor.SupervisorConfig(
+        bus=BusConfig(session=session, listen=[f"tcp/127.0.0.1:{free_port()}"]), nodes=nodes
+    )
+    small = Design(sloper=Sloper(kind="skirt"), resolution=Resolution(coarse_vertices=300, fine_vertices=900))
+    xl = load_mannequin_sdf(verbose=False, name="XL")  # built here once, cached for the node
+    with supervisor.Supervisor(cfg) as sup, Client(bus=sup.child_bus) as client:
+        client.wait_nodes(["remesher", "solver-kinetic"], timeout=60)
+        gen = client.publish_pattern(small, name="default body")
+        first = client.wait_drape("fine", generation=gen, timeout=150, final=True)
+        gen_xl = client.publish_pattern(msgspec.structs.replace(small, body=Body(name="XL")), name="XL")
+        second = client.wait_drape("fine", generation=gen_xl, timeout=150, final=True)
+        assert client.latest_mesh("fine").X.shape == client.mesh_of(gen).X.shape  # followed, not remeshed
+        assert xl.phi_grad(first.x.numpy())[0].min() < -0.01
+        assert xl.phi_grad(second.x.numpy())[0].min() > -0.01
+        assert second.converged
