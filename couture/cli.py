@@ -213,6 +213,15 @@ def _parser() -> argparse.ArgumentParser:
     )
     bm.add_argument("names", nargs="*", help="sizes to make (default: every size of the table)")
     bm.add_argument("--out", default=None, help="directory (default: couture/assets/bodies)")
+    bm.add_argument(
+        "--measure",
+        nargs=5,
+        type=float,
+        metavar=("HEIGHT", "BUST", "WAIST", "HIP", "INSEAM"),
+        default=None,
+        help="a body of your own measurements [m] (stature, bust, waist and hip girths, inside leg), "
+        "named by the one NAME given",
+    )
 
     bp = sub.add_parser(
         "bench", help="benchmarks: NAME writes NAME.json (and its plots) to --out DIR (default bench/results/)"
@@ -229,7 +238,12 @@ def bodies_command(args: argparse.Namespace) -> int:
     if args.bodies_cmd == "make":
         from couture.bodies.make import make_graded
 
-        make_graded(Path(args.out) if args.out else bodies.BODIES_DIR, args.names or None)
+        table = None
+        if args.measure is not None:
+            if len(args.names) != 1:
+                raise ValueError("--measure makes one body: give exactly one NAME")
+            table = {args.names[0]: dict(zip(MEASURES, args.measure, strict=True))}
+        make_graded(Path(args.out) if args.out else bodies.BODIES_DIR, args.names or None, table=table)
         bodies.index.cache_clear()
     rows = bodies.table()
     if getattr(args, "json", False):

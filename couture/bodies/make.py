@@ -158,10 +158,16 @@ def write_obj(path: Path, V: np.ndarray, F: np.ndarray, header: str) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def make_graded(out: Path = BODIES_DIR, names: list[str] | None = None, verbose: bool = True) -> dict:
-    """Fit and write every size of SIZE_TABLE (or ``names``): <name>.obj, the
-    placement sections <name>.sections.npz, and bodies.json (requested vs
-    measured, Anny parameters); copies Anny's licence beside them."""
+def make_graded(
+    out: Path = BODIES_DIR,
+    names: list[str] | None = None,
+    verbose: bool = True,
+    table: dict[str, dict[str, float]] | None = None,
+) -> dict:
+    """Fit and write every size of ``table`` (default SIZE_TABLE; or only
+    ``names``): <name>.obj, the placement sections <name>.sections.npz, and
+    bodies.json (requested vs measured, Anny parameters); copies Anny's
+    licences beside them."""
     import anny
 
     from couture.pattern.sections import measure_sections, save_sections
@@ -171,10 +177,13 @@ def make_graded(out: Path = BODIES_DIR, names: list[str] | None = None, verbose:
     index = json.loads(index_path.read_text()) if index_path.exists() else {"bodies": {}}
     index["source"] = SIZE_TABLE_SOURCE
     index["generator"] = f"couture bodies make (anny {anny.__version__}, topology {TOPOLOGY!r})"
-    for name in names or list(SIZE_TABLE):
-        if name not in SIZE_TABLE:
-            raise ValueError(f"unknown size {name!r}; sizes are {list(SIZE_TABLE)}")
-        target = SIZE_TABLE[name]
+    table = SIZE_TABLE if table is None else table
+    for name in names or list(table):
+        if name not in table:
+            raise ValueError(f"unknown size {name!r}; sizes are {list(table)}")
+        if name == "default" or not name.replace("_", "").replace("-", "").isalnum():
+            raise ValueError(f"body name {name!r}: use letters, digits, '-' or '_', and not 'default'")
+        target = table[name]
         if verbose:
             print(f"{name}: " + ", ".join(f"{k}={v:.3f}" for k, v in target.items()), file=sys.stderr)
         V, F, params, measured = fit_body(target, verbose=verbose)
