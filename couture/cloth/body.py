@@ -166,7 +166,7 @@ class TriangleMeshDistance:
 
 
 BAND_NODES = 5
-"""grid spacings from the surface within which build_grid_sdf's values are exact"""
+"""grid spacings outside the surface within which build_grid_sdf's values are exact"""
 
 
 def build_grid_sdf(
@@ -174,15 +174,14 @@ def build_grid_sdf(
 ) -> GridSDFBody:
     """Grid SDF over the mesh's bounding box grown by ``margin`` [m].
 
-    Nodes within ``BAND_NODES`` spacings of the surface get exact signed
-    distances; the B-spline reads nodes at most 2 spacings from where it is
-    evaluated, so every point within 3 spacings of the body (the contact layer
-    and well beyond) sees only exact nodes. Farther nodes (proved far by a
-    bounded nearest-centroid query, which is what makes the build several
-    times cheaper: the 24-nearest query for far points dominated it) get the
-    band's width plus their grid distance to the band, signed by whether their
-    region of far nodes reaches the grid's border (outside) or not (inside):
-    a monotone, correctly signed stand-in where no contact acts."""
+    Nodes inside the body or within ``BAND_NODES`` spacings of its surface get
+    exact signed distances. The rest, far outside (proved far by a bounded
+    nearest-centroid query; the 24-nearest query for them dominated the build,
+    which is now about 3x cheaper), get the band's width plus their grid
+    distance to the band: >= the band like the exact value, so the contact,
+    which acts within its 1 cm offset, sees the same body. The B-spline reads
+    nodes at most 2 spacings away, so it is bit-identical to the all-exact
+    grid everywhere inside the body and within 3 spacings outside it."""
     from scipy import ndimage
 
     V = np.asarray(vertices, dtype=np.float64)
@@ -194,19 +193,17 @@ def build_grid_sdf(
     dist = TriangleMeshDistance(V, faces)
     band = BAND_NODES * spacing
     dc, _ = dist.tree.query(P, k=1, distance_upper_bound=band + dist.reach)
-    near = np.isfinite(dc)
+    far = ~np.isfinite(dc).reshape(shape)
+    # far nodes cut off from the grid's border by the band lie inside the body
+    labels, _ = ndimage.label(far)
+    border = np.zeros(shape, bool)
+    border[[0, -1], :, :] = border[:, [0, -1], :] = border[:, :, [0, -1]] = True
+    outside = far & np.isin(labels, np.unique(labels[border & far]))
+    exact = ~outside.reshape(-1)
     values = np.empty(len(P))
-    values[near] = dist(np.ascontiguousarray(P[near]), progress=progress)
-    near = near.reshape(shape)
+    values[exact] = dist(np.ascontiguousarray(P[exact]), progress=progress)
     values = values.reshape(shape)
-    far = ~near
-    if far.any():
-        labels, n = ndimage.label(far)
-        border = np.zeros(shape, bool)
-        border[[0, -1], :, :] = border[:, [0, -1], :] = border[:, :, [0, -1]] = True
-        outside = np.isin(labels, np.unique(labels[border & far]))
-        grow = ndimage.distance_transform_edt(far) * spacing
-        values[far] = np.where(outside[far], 1.0, -1.0) * (band + grow[far])
+    values[outside] = band + ndimage.distance_transform_edt(outside)[outside] * spacing
     return GridSDFBody(origin=lo, spacing=float(spacing), values=values)
 
 
