@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import enum
 import importlib
+import json
 import logging
 import math
 import pkgutil
@@ -283,12 +284,62 @@ def _parser() -> argparse.ArgumentParser:
     gp = sub.add_parser("golden", help="golden recordings: make or check recordings/<case>.mcap", add_help=False)
     gp.add_argument("rest", nargs=argparse.REMAINDER)
 
+    bo = sub.add_parser(
+        "bodies", help="bodies a design can name: list them (requested vs measured), or make the graded sizes"
+    )
+    bsub = bo.add_subparsers(dest="bodies_cmd", required=True)
+    bl = bsub.add_parser("list", help="print every body with its requested and measured ISO 8559-1 measurements")
+    bl.add_argument("--json", action="store_true", help="print the table as JSON")
+    bm = bsub.add_parser(
+        "make", help="fit the graded sizes with Anny and write couture/assets/bodies (needs couture[bodies])"
+    )
+    bm.add_argument("names", nargs="*", help="sizes to make (default: every size of the table)")
+    bm.add_argument("--out", default=None, help="directory (default: couture/assets/bodies)")
+    bm.add_argument(
+        "--measure",
+        nargs=5,
+        type=float,
+        metavar=("HEIGHT", "BUST", "WAIST", "HIP", "INSEAM"),
+        default=None,
+        help="a body of your own measurements [m] (stature, bust, waist and hip girths, inside leg), "
+        "named by the one NAME given",
+    )
+
     bp = sub.add_parser(
         "bench", help="benchmarks: NAME writes NAME.json (and its plots) to --out DIR (default bench/results/)"
     )
     bp.add_argument("which", choices=BENCHES)
     bp.add_argument("args", nargs=argparse.REMAINDER, help="passed to the benchmark, e.g. --out DIR")
     return p
+
+
+def bodies_command(args: argparse.Namespace) -> int:
+    import couture.bodies as bodies
+    from couture.bodies.measure import MEASURES
+
+    if args.bodies_cmd == "make":
+        from couture.bodies.make import make_graded
+
+        table = None
+        if args.measure is not None:
+            if len(args.names) != 1:
+                raise ValueError("--measure makes one body: give exactly one NAME")
+            table = {args.names[0]: dict(zip(MEASURES, args.measure, strict=True))}
+        make_graded(Path(args.out) if args.out else bodies.BODIES_DIR, args.names or None, table=table)
+        bodies.index.cache_clear()
+    rows = bodies.table()
+    if getattr(args, "json", False):
+        print(json.dumps(rows, indent=2))
+        return 0
+    print("requested / measured [cm] (ISO 8559-1: stature, bust, waist, hip girths, inside leg)")
+    print(f"{'body':8s}" + "".join(f"{k:>22s}" for k in MEASURES))
+    for r in rows:
+        cells = []
+        for k in MEASURES:
+            m = 100 * r["measured"][k]
+            cells.append(f"{m:.1f}" if r["requested"] is None else f"{100 * r['requested'][k]:.1f} / {m:.1f}")
+        print(f"{r['name']:8s}" + "".join(f"{c:>22s}" for c in cells))
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -412,6 +463,8 @@ def _dispatch(args: argparse.Namespace) -> int:
         return export_pattern(args)
     if args.cmd == "adjust":
         return adjust(args)
+    if args.cmd == "bodies":
+        return bodies_command(args)
 
     if args.cmd == "bench":
         try:

@@ -248,9 +248,15 @@ class ClothModel:
             if isinstance(scene.body, str):
                 from couture.cloth import body as body_mod
 
-                if scene.body != "mannequin":
-                    raise ValueError(f"unknown body {scene.body!r}; use a Body or 'mannequin'")
-                self.body = body_mod.load_mannequin_sdf()
+                # 'mannequin' is the default body; any other string names a body of couture.bodies
+                name = "default" if scene.body == "mannequin" else scene.body
+                from couture import bodies
+
+                if name not in bodies.names():
+                    raise ValueError(
+                        f"unknown body {scene.body!r}; use a Body, 'mannequin' or one of {list(bodies.names())}"
+                    )
+                self.body = body_mod.load_mannequin_sdf(name=name)
             else:
                 self.body = scene.body
             terms.append("contact")

@@ -68,7 +68,8 @@ def scene_from_design(design: Design) -> Scene:
         v = getattr(flags, name)
         if not (math.isfinite(v) and v > 0):
             raise ValueError(f"scene.{name}: {v!r} is not a positive finite factor")
-    body = "mannequin" if flags.body else None
+    # the default body keeps its old name; a graded body goes by its own (couture.bodies)
+    body = ("mannequin" if design.body.name == "default" else design.body.name) if flags.body else None
     mu, _ = lame_parameters(design.fabric.stretch_stiffness, design.fabric.poisson_ratio)
     # a factor of 1 leaves the model's own default in charge (None)
     seam = None if flags.seam_stiffness_scale == 1.0 else flags.seam_stiffness_scale * SEAM_STIFFNESS_PER_MU * mu
@@ -183,11 +184,17 @@ class SolveService:
 
     # -- state
     def set_design(self, design: Design) -> bool:
-        """Returns True when fabric or scene changed (models must be rebuilt).
+        """Returns True when fabric, scene or body changed (models must be rebuilt;
+        each level keeps its state, so a new body re-drapes from the current drape).
         Raises PatternError naming the field (``fabric.area_density``, ...)
         for a fabric outside its physical range, keeping the current design."""
         check_simulation_values(design)
-        changed = self.design is None or design.fabric != self.design.fabric or design.scene != self.design.scene
+        changed = (
+            self.design is None
+            or design.fabric != self.design.fabric
+            or design.scene != self.design.scene
+            or design.body != self.design.body
+        )
         self.design = design
         if changed:
             for lm in self.levels.values():
