@@ -282,6 +282,53 @@ class DrapeMsg(Message, kw_only=True):
     level's result (converged or stopped with a diagnosis) and for predictions"""
 
 
+TRYON_OPS = ("start", "move", "rotate", "drag", "fix", "unfix", "sew", "unsew")
+TRYON_PANEL_OPS = ("move", "rotate", "drag", "fix", "unfix")
+
+
+class TryOnMsg(Message, kw_only=True):
+    """A try-on manipulation (Meng 2010 §6, ``couture.tryon``). ui, scripts ->
+    solver, which applies it to its current state and re-solves from there
+    (drape/coarse, drape/fine as usual). Key ``tryon``.
+
+    ``start`` begins a try-on of the current drape (the placement before any):
+    every seam sewn (``sewn``) or none (sequential sewing); the other ops
+    start one with every seam sewn if none is running. ``move``: ``panel`` by
+    ``vector`` [m]; ``rotate``: by ``angle`` [rad] about ``vector`` (an axis;
+    zero: vertical) through the panel's centroid; ``drag``: slide the panel
+    along the body by ``angle`` [rad] about its vertical axis and
+    ``vector[1]`` [m] up it, kept outside the contact offset; ``fix`` /
+    ``unfix``: pin / release ``panel``; ``sew`` / ``unsew``: ``seam`` (-1:
+    the next unsewn / the last sewn; seams are numbered in drafted order).
+    A new pattern generation ends the try-on.
+    """
+
+    TYPE: ClassVar[str] = "couture/tryon/v1"
+    ARRAYS: ClassVar[dict[str, ArraySpec]] = {"vector": ArraySpec(F64, (3,), finite=True)}
+    schema: str = "couture/tryon/v1"
+    op_id: str = ""
+    """identifier of this operation (drapes answering it are stamped after it)"""
+    op: Literal["start", "move", "rotate", "drag", "fix", "unfix", "sew", "unsew"]
+    panel: str = ""
+    """panel name (move, rotate, drag, fix, unfix)"""
+    vector: Array = msgspec.field(default_factory=lambda: Array.from_numpy(np.zeros(3)))
+    """move: displacement [m]; rotate: axis; drag: [0, rise [m], 0]; shape (3,), float64"""
+    angle: float = 0.0
+    """rotate, drag: [rad]"""
+    seam: int = -1
+    """sew, unsew: seam index, -1 for the next / the last"""
+    sewn: bool = True
+    """start: every seam sewn (True) or none (False)"""
+
+    def check(self) -> None:
+        import math
+
+        if not math.isfinite(self.angle):
+            raise SchemaError(f"{self.TYPE}: field `$.angle`: {self.angle!r} is not finite")
+        if self.op in TRYON_PANEL_OPS and not self.panel:
+            raise SchemaError(f"{self.TYPE}: field `$.panel`: op {self.op!r} needs a panel")
+
+
 class StatusMsg(Message, kw_only=True):
     """Health of one node. every node -> ui, supervisor, recorder. Key
     ``status/<node>``; presence itself is the liveliness token on the same key."""
@@ -428,6 +475,7 @@ MESSAGE_TYPES: tuple[type[Message], ...] = (
     RejectedMsg,
     SolveRequestMsg,
     SolveResultMsg,
+    TryOnMsg,
 )
 
 REGISTRY: dict[str, type[Message]] = {cls.TYPE: cls for cls in MESSAGE_TYPES}
@@ -600,6 +648,7 @@ __all__ = [
     "RejectedMsg",
     "SolveRequestMsg",
     "SolveResultMsg",
+    "TryOnMsg",
     "MESSAGE_TYPES",
     "REGISTRY",
     "encode",

@@ -28,6 +28,7 @@ from schemas.messages import (
     SolveRequestMsg,
     SolveResultMsg,
     StatusMsg,
+    TryOnMsg,
 )
 
 MiB = 1 << 20
@@ -108,6 +109,16 @@ TOPICS: tuple[Topic, ...] = (
     Topic(
         "edit",
         EditMsg,
+        EXPRESS,
+        recorded=True,
+        replayed=True,
+        compared=False,
+        publisher="ui, scripts",
+        max_bytes=64 << 10,
+    ),
+    Topic(
+        "tryon",
+        TryOnMsg,
         EXPRESS,
         recorded=True,
         replayed=True,

@@ -134,7 +134,9 @@ def _assert_complete(report, name):
     for topic in ("drape/coarse", "drape/fine"):
         rows = report.topics[topic].drapes
         assert len(rows) >= case.n_designs, report.text()
-        assert all(r.iterations[0] > 0 and r.iterations[1] > 0 for r in rows), "iterations are reported"
+        # reported on both sides (a try-on fix re-solves an equilibrium in 0 iterations)
+        assert all(len(r.iterations) == 2 for r in rows), "iterations are reported"
+        assert any(r.iterations[0] > 0 and r.iterations[1] > 0 for r in rows), "iterations are reported"
     js = report.to_json()
     assert js["topics"]["drape/fine"]["drapes"][0]["iterations"], "iterations are in the JSON"
 

@@ -24,6 +24,7 @@ from schemas import (
     SolveRequestMsg,
     SolveResultMsg,
     StatusMsg,
+    TryOnMsg,
     decode,
     encode,
     type_for_topic,
@@ -131,6 +132,17 @@ def any_msgs(draw):
             x_warm=draw(st.one_of(st.none(), st.just(mm.x0.numpy()))),
             tol=draw(finite),
         )
+    if kind == "TryOnMsg":
+        return TryOnMsg(
+            **h,
+            op_id=draw(text),
+            op=draw(st.sampled_from(["start", "move", "rotate", "drag", "fix", "unfix", "sew", "unsew"])),
+            panel="gore" + draw(text),
+            vector=_arr(draw, (3,)),
+            angle=draw(finite),
+            seam=draw(st.integers(-1, 20)),
+            sewn=draw(st.booleans()),
+        )
     return SolveResultMsg(**h, request_id=draw(text), solver=draw(text), x=_arr(draw, (2, 3)), residual=draw(finite))
 
 
@@ -158,6 +170,7 @@ def test_all_types_covered_by_round_trip_strategy():
         "RejectedMsg",
         "SolveRequestMsg",
         "SolveResultMsg",
+        "TryOnMsg",
     }
     for name, cls in REGISTRY.items():
         assert name == cls.TYPE and name.startswith("couture/") and name.endswith("/v1")
@@ -365,3 +378,14 @@ def test_topic_types():
     assert type_for_topic("solve/request") is SolveRequestMsg
     assert type_for_topic("status/ui") is StatusMsg
     assert type_for_topic("drape/fine/extra") is None
+
+
+def test_tryon_message_names_a_missing_panel_and_a_bad_angle():
+    with pytest.raises(SchemaError, match=r"tryon/v1.*\$\.panel.*needs a panel"):
+        decode(encode(TryOnMsg(op="drag", angle=0.1)), TryOnMsg)
+    with pytest.raises(SchemaError, match=r"\$\.angle"):
+        encode(TryOnMsg(op="rotate", panel="a", angle=float("inf")))
+    with pytest.raises(SchemaError, match=r"\$\.vector"):
+        encode(TryOnMsg(op="move", panel="a", vector=np.array([0.0, np.nan, 0.0])))
+    ok = decode(encode(TryOnMsg(op="sew")), TryOnMsg)
+    assert ok.seam == -1 and ok.vector.numpy().shape == (3,)

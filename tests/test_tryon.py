@@ -189,3 +189,44 @@ def _gap(m, x, springs) -> float:
     e, ab, w = m.seam_emitters[springs], m.seam_edges[springs], m.seam_weights[springs]
     q = (1 - w)[:, None] * x[ab[:, 0]] + w[:, None] * x[ab[:, 1]]
     return float(np.linalg.norm(x[e] - q, axis=1).max())
+
+
+def test_solver_service_applies_tryon_ops_to_both_levels(sdf):
+    """The solver node's state machine (no bus): a drag moves the held drape
+    of both levels outside the body and the next run converges from there;
+    ``start`` without seams builds models with no seam springs, ``sew`` adds
+    one seam's; a new mesh ends the try-on (models with every seam again)."""
+    import msgspec
+
+    from couture.remesh.meshing import mesh_pattern
+    from couture.solvers.service import SolveService
+    from schemas.design import Design
+
+    design = msgspec.convert({"sloper": {"kind": "skirt"}, "scene": {"friction": False}}, Design)
+    from couture.pattern.validate import validate
+
+    drafted = validate(design)
+    s = SolveService(method="newton")
+    s.design = design
+    for level, n in (("coarse", 120), ("fine", 300)):
+        s.set_mesh(level, mesh_pattern(drafted, n, level=level).mesh, 1)
+    with pytest.raises(TryOnError, match="no panel"):
+        s.apply_tryon("move", panel="sleeve", vector=[0, 0, 0.01])
+    assert s.tryon is None  # a failed op leaves no try-on behind
+    runs = s.run()
+    assert all(r.result.converged for r in runs)
+    s.apply_tryon("drag", panel="gore1", angle=0.4, vector=[0.0, -0.04, 0.0], op_id="d1")
+    assert s.tryon_op_id == "d1"
+    for level, lm in s.levels.items():
+        v = panel_vertices(lm.mesh, "gore1")
+        assert sdf.phi_grad(lm.x[v])[0].min() >= lm.model.contact_offset - 1e-6, level
+    runs = s.run()
+    assert all(r.result.converged and r.warm_start == "previous" for r in runs)
+    s.apply_tryon("start", sewn=False)
+    assert all(not lm.model.has_seams for lm in s.levels.values())
+    s.apply_tryon("sew", seam=2)
+    for level, lm in s.levels.items():
+        assert len(lm.model.seam_stencils) == len(s.tryon[level].groups[2]), level
+    s.set_mesh("coarse", mesh_pattern(drafted, 130, level="coarse").mesh, 2)
+    assert s.tryon is None and s.tryon_op_id == ""
+    assert len(s.levels["fine"].model.seam_stencils) == len(s.levels["fine"].mesh.seam_emitters)

@@ -75,7 +75,7 @@ STANDARD_NODES = (
 DEFAULT_WRITERS = ("ui", "sensitivity")
 """nodes that publish designs in a standard ``couture up`` (the UI; the 3D tug)"""
 
-PATTERN_KEYS = [f"couture/*/{t}{suffix}" for t in ("pattern", "edit") for suffix in ("", "/**", "/@adv/**")]
+PATTERN_KEYS = [f"couture/*/{t}{suffix}" for t in ("pattern", "edit", "tryon") for suffix in ("", "/**", "/@adv/**")]
 """what only writers may put, and reply with: a zenoh-ext history cache
 answers a late joiner with the sample's own key (``couture/<s>/pattern``),
 so denying ``reply`` there keeps an unlisted node's cached design from late
@@ -96,7 +96,7 @@ class Policy:
     """Who may do what (common names)."""
 
     writers: list[str] = field(default_factory=list)
-    """may put on pattern and edit"""
+    """may put on pattern, edit and tryon"""
     solvers: list[str] = field(default_factory=list)
     """may answer solve queries (and publish their results)"""
 

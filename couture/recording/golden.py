@@ -124,8 +124,8 @@ class Case:
 
     @property
     def n_designs(self) -> int:
-        """designs the session drapes (design, drag and tug steps)"""
-        return sum(next(iter(st)) != "switch_solver" for st in self.all_steps())
+        """designs the session drapes (design, drag and tug steps; a try-on op re-drapes the current one)"""
+        return sum(next(iter(st)) not in ("switch_solver", "tryon") for st in self.all_steps())
 
     @property
     def mcap(self) -> Path:

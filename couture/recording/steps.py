@@ -21,6 +21,10 @@ nodes (a supervisor's children) by a :class:`Driver`:
     fine drape (camera :func:`camera`, 800x800 px viewport), drags reaching
     ``px`` screen pixels, release; the sensitivity node publishes the tugged
     design, which is waited for.
+``{"tryon": {"op": "drag", "panel": "gore1", "angle": 0.3, "vector": [0, -0.05, 0], "seam": -1, "sewn": true}}``
+    a try-on op (``couture/tryon/v1``, couture.tryon; the keys other than
+    ``op`` are optional) on the current design; waits for the solver's
+    final drape/fine answering it (its ``edit_id`` is the op's ``op_id``).
 ``{"switch_solver": "kinetic"}``
     stop the solver node(s) and start ``solver-<name>``; wait until it has
     published a final drape/fine of the current design (it resumes from the
@@ -46,9 +50,9 @@ from typing import Any
 import numpy as np
 
 from schemas.design import Design
-from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, decode
+from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, TryOnMsg, decode
 
-STEP_KINDS = ("design", "drag", "tug", "switch_solver")
+STEP_KINDS = ("design", "drag", "tug", "tryon", "switch_solver")
 GESTURES = ("drag", "tug")
 VIEWPORT = [800, 800]
 SENSITIVITY = "sensitivity"
@@ -77,6 +81,10 @@ def validate(steps: list, where: str) -> None:
             allowed = need | {"moves", "rate_hz", "kill_solver_after"}
             if not isinstance(arg, dict) or not need <= set(arg) or set(arg) - allowed:
                 raise ValueError(f"{where}: step {i} ({kind}) needs {sorted(need)}, allows {sorted(allowed)}: {arg!r}")
+        if kind == "tryon":
+            allowed = {"op", "panel", "vector", "angle", "seam", "sewn"}
+            if not isinstance(arg, dict) or "op" not in arg or set(arg) - allowed:
+                raise ValueError(f"{where}: step {i} (tryon) needs 'op', allows {sorted(allowed)}: {arg!r}")
 
 
 @dataclass
@@ -87,6 +95,8 @@ class GoldenInputs:
     """patterns a client published (not the sensitivity node's tug designs), in order"""
     gestures: list[list[tuple[int, bytes]]] = field(default_factory=list)
     """per gesture (edit_id, in order of its press): (ns since its first message, payload)"""
+    tryons: list[bytes] = field(default_factory=list)
+    """try-on ops, in order"""
 
     @classmethod
     def read(cls, path: Any) -> "GoldenInputs":
@@ -94,8 +104,10 @@ class GoldenInputs:
 
         out = cls()
         by_id: dict[str, list[tuple[int, bytes]]] = {}
-        for rec in read_session(str(path), ["pattern", "edit"]):
-            if rec.topic == "pattern":
+        for rec in read_session(str(path), ["pattern", "edit", "tryon"]):
+            if rec.topic == "tryon":
+                out.tryons.append(rec.data)
+            elif rec.topic == "pattern":
                 if decode(rec.data, PatternMsg).source != SENSITIVITY:
                     out.patterns.append(rec.data)
             else:
@@ -141,9 +153,11 @@ class Driver:
         self._tugs: list[PatternMsg] = []
         self._next_pattern = 0
         self._next_gesture = 0
+        self._next_tryon = 0
         bus = client.bus
         self.pattern_pub = bus.publisher("pattern", PatternMsg)
         self.edit_pub = bus.publisher("edit", EditMsg)
+        self.tryon_pub = bus.publisher("tryon", TryOnMsg)
         bus.subscribe("pattern", self._on_pattern, PatternMsg)
         bus.subscribe("mesh/fine", self._on_mesh, MeshMsg)
 
@@ -356,6 +370,50 @@ class Driver:
             self.log.tug_params.append(float(tug.design.sloper.params.get(arg["param"], float("nan"))))
             self._settle(tug.identity(), step)
 
+    # -- try-on
+    def tryon(self, step: int, arg: dict) -> None:
+        """Publish a try-on op (make) or the golden's next one (check); wait for
+        the final drape/fine answering it."""
+        if self.replay is None:
+            msg = TryOnMsg(
+                op_id=f"{self.case.name}-{step}",
+                op=arg["op"],
+                panel=str(arg.get("panel", "")),
+                vector=np.asarray(arg.get("vector", [0.0, 0.0, 0.0]), np.float64),
+                angle=float(arg.get("angle", 0.0)),
+                seam=int(arg.get("seam", -1)),
+                sewn=bool(arg.get("sewn", True)),
+                generation=self.generation,
+            )
+            self.tryon_pub.wait_matching(5.0)
+            self.tryon_pub.put(msg)
+        else:
+            if self._next_tryon >= len(self.replay.tryons):
+                raise ValueError(f"golden {self.case.name}: step {step} needs a try-on op the golden does not hold")
+            data = self.replay.tryons[self._next_tryon]
+            self._next_tryon += 1
+            msg = decode(data, TryOnMsg)
+            self.tryon_pub.put_raw(data)
+
+        def find() -> DrapeMsg | None:
+            return next(
+                (d for d in reversed(self.client.drapes("fine")) if d.final and d.edit_id == msg.op_id),
+                None,
+            )
+
+        deadline = time.monotonic() + self.timeout
+        while (d := find()) is None:
+            if time.monotonic() > deadline:
+                raise TimeoutError(
+                    f"golden {self.case.name}: step {step}: no final drape/fine answering try-on {msg.op} "
+                    f"{msg.op_id} within {self.timeout:g} s"
+                )
+            time.sleep(0.05)
+        self.say(
+            f"step {step}: try-on {msg.op} {msg.panel or ''} -> residual {d.residual:.2e} "
+            + ("converged" if d.converged else d.diagnosis)
+        )
+
     def run(self, steps: list) -> StepLog:
         for i, st in enumerate(steps):
             kind, arg = next(iter(st.items()))
@@ -363,6 +421,8 @@ class Driver:
                 self.design_step(i, arg)
             elif kind == "switch_solver":
                 self.switch_solver(i, arg)
+            elif kind == "tryon":
+                self.tryon(i, arg)
             else:
                 self.gesture(i, kind, arg)
         return self.log

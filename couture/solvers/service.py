@@ -49,6 +49,7 @@ from couture.pattern.limits import check_simulation_values
 from couture.solvers import get_solver
 from couture.solvers.base import SolveResult
 from couture.solvers.cascadic import polish_prolongated
+from couture.tryon import TryOn
 from schemas.design import Design
 
 log = logging.getLogger(__name__)
@@ -139,6 +140,11 @@ class SolveService:
     prolongation: tuple[np.ndarray, np.ndarray] | None = None
     matcher: MeshMatcher[IncomingMesh] = field(default_factory=MeshMatcher)
     friction_at_once: tuple[str, ...] = FRICTION_AT_ONCE
+    tryon: dict[str, TryOn] | None = None
+    """level -> the try-on in progress (couture.tryon), None when there is none"""
+    tryon_op_id: str = ""
+    """op_id of the last try-on op applied ('' outside a try-on): the drapes
+    solved after it carry it as their edit_id, so a recording matches them per op"""
 
     def __post_init__(self) -> None:
         self.solver = get_solver(self.method)
@@ -197,8 +203,8 @@ class SolveService:
         )
         self.design = design
         if changed:
-            for lm in self.levels.values():
-                lm.model = ClothModel(lm.mesh, design.fabric, scene_from_design(design))
+            for level, lm in self.levels.items():
+                lm.model = ClothModel(self._model_mesh(level), design.fabric, scene_from_design(design))
                 lm.converged = False
         return changed
 
@@ -214,6 +220,8 @@ class SolveService:
         old = self.levels.get(level)
         if old is not None and old.mesh_generation == mesh_generation:
             return
+        if self.tryon is not None:
+            self.end_tryon()
         x_prev = None
         if old is not None and same_vertices(old.mesh, mesh):
             x_prev = old.x
@@ -287,6 +295,8 @@ class SolveService:
             )
             lm.x = result.x
             lm.converged = result.converged
+            if self.tryon is not None and level in self.tryon:
+                self.tryon[level].x = np.array(result.x, dtype=np.float64)
             self.predictions.pop(level, None)
             run = LevelRun(level, lm.mesh_generation, result, how)
             runs.append(run)
@@ -296,3 +306,74 @@ class SolveService:
                 break
             coarse_x = result.x if level == "coarse" else coarse_x
         return runs
+
+    # -- try-on (couture.tryon, Meng 2010 §6): operations on the held state
+    def _model_mesh(self, level: str) -> GarmentMesh:
+        """The mesh a level's model is built on: the try-on's (sewn seams,
+        fixed panels pinned at the current positions) during one."""
+        if self.tryon is not None and level in self.tryon:
+            return self.tryon[level].model_mesh()
+        return self.levels[level].mesh
+
+    def end_tryon(self) -> None:
+        """Back to the plain drape of the held meshes (models with every seam)."""
+        self.tryon = None
+        self.tryon_op_id = ""
+        if self.design is None:
+            return
+        for lm in self.levels.values():
+            lm.model = ClothModel(lm.mesh, self.design.fabric, scene_from_design(self.design))
+            lm.converged = False
+
+    def apply_tryon(
+        self,
+        op: str,
+        *,
+        panel: str = "",
+        vector=None,
+        angle: float = 0.0,
+        seam: int = -1,
+        sewn: bool = True,
+        op_id: str = "",
+    ) -> None:
+        """Apply a try-on op to every held level (each from its latest state,
+        or its warm start before any solve) and rebuild their models; the next
+        :meth:`run` solves from there. ``start`` (re)begins a try-on with
+        every seam sewn or none; another op starts one with every seam sewn
+        when none runs. Raises couture.tryon.TryOnError (state unchanged)
+        for an op that cannot apply."""
+        from couture.tryon import TryOnError
+
+        if self.design is None or not self.ready():
+            raise TryOnError("no garment held yet (pattern and meshes) to try on")
+        current = self.tryon
+        if op == "start" or current is None:
+            current = {}
+            for level, lm in self.levels.items():
+                x = lm.x if lm.x is not None else lm.mesh.x0
+                current[level] = TryOn.start(lm.mesh, x, sewn=sewn if op == "start" else True)
+        if op != "start":
+            trial = {level: _copy_tryon(t) for level, t in current.items()}
+            for level, t in trial.items():
+                model = self.levels[level].model
+                t.apply(
+                    op,
+                    panel=panel,
+                    vector=vector,
+                    angle=angle,
+                    seam=None if seam < 0 else seam,
+                    body=model.body,
+                    offset=model.contact_offset,
+                )
+            current = trial
+        self.tryon = current
+        self.tryon_op_id = op_id
+        for level, lm in self.levels.items():
+            lm.model = ClothModel(current[level].model_mesh(), self.design.fabric, scene_from_design(self.design))
+            lm.x = current[level].x.copy()
+            lm.converged = False
+        self.predictions.clear()
+
+
+def _copy_tryon(t: TryOn) -> TryOn:
+    return TryOn(mesh=t.mesh, x=t.x.copy(), groups=t.groups, sewn=t.sewn.copy(), fixed=set(t.fixed))

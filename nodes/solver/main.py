@@ -17,6 +17,11 @@ prediction numbered above it, are ignored with a log line naming both
 generations and counted (``stale_edits``, ``foreign_edits``,
 ``foreign_predictions``).
 
+A try-on op (``tryon``, couture.tryon) is queued and applied by the worker
+between solves (it aborts the running one), to the state each level holds,
+then both levels re-solve from there; their drapes carry the op's ``op_id``
+as ``edit_id``. A new pattern generation ends the try-on.
+
 A solver pool (``--serve-session S``, repeatable): the node serves those
 design sessions, each with its own service, drape publishers and solve
 queryable, through one worker thread (one solve at a time); the members of
@@ -43,7 +48,8 @@ from couture.pattern.errors import PatternError
 from couture.pattern.limits import check_simulation_values
 from couture.solvers import get_solver
 from couture.solvers.service import IncomingMesh, LevelRun, SolveService, scene_from_design
-from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg, SolveRequestMsg, SolveResultMsg
+from couture.tryon import TryOnError
+from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg, SolveRequestMsg, SolveResultMsg, TryOnMsg
 from schemas.convert import msg_to_mesh
 
 log = logging.getLogger("solver")
@@ -187,6 +193,8 @@ def serve(
     rejected_pub = bus.publisher("rejected", RejectedMsg)
     lock = threading.Lock()
     state: dict = {"gesture": "", "dragging": False, "abort": False}
+    tryon_ops: list[TryOnMsg] = []
+    """try-on ops received, applied in order by the worker before its next solve"""
 
     def drape_msg(
         level: str,
@@ -212,6 +220,7 @@ def serve(
             generation=lm.mesh.generation,
             mesh_generation=lm.mesh_generation,
             final=final,
+            edit_id=service.tryon_op_id,
         )
 
     def should_abort() -> bool:
@@ -245,6 +254,10 @@ def serve(
             if state["dragging"] or not service.ready():
                 return
             state["abort"] = False
+            ops = list(tryon_ops)
+            tryon_ops.clear()
+        for op in ops:
+            apply_tryon(op)
         service.run(
             should_abort=should_abort,
             on_progress=on_progress,
@@ -329,6 +342,41 @@ def serve(
             return
         service.set_prediction(msg.mesh_level, msg.mesh_generation, msg.x.numpy())
 
+    def apply_tryon(msg: TryOnMsg) -> None:
+        if service.judge_edit(msg.generation) != "current":
+            node.count("stale_tryon")
+            log.warning(
+                "try-on %s %s on generation %d ignored: this solver's design is %d",
+                msg.op,
+                msg.op_id,
+                msg.generation,
+                service.generation,
+            )
+            return
+        try:
+            service.apply_tryon(
+                msg.op,
+                panel=msg.panel,
+                vector=msg.vector.numpy(),
+                angle=msg.angle,
+                seam=msg.seam,
+                sewn=msg.sewn,
+                op_id=msg.op_id,
+            )
+        except TryOnError as e:
+            node.count("bad_tryon")
+            node.error(f"try-on {msg.op} {msg.op_id}: {e}")
+            return
+        node.count("tryon")
+        log.info("try-on %s %s applied (panel %r, seam %d)", msg.op, msg.op_id, msg.panel, msg.seam)
+
+    def on_tryon(msg: TryOnMsg) -> None:
+        # applied by the worker thread, between solves (the models change)
+        with lock:
+            tryon_ops.append(msg)
+        state["abort"] = True
+        worker.submit(f"{slot}solve", solve_job)
+
     def handle_solve(req: SolveRequestMsg) -> SolveResultMsg:
         design = req.design or service.design
         if design is None:
@@ -363,6 +411,7 @@ def serve(
     bus.subscribe("mesh/fine", on_mesh)
     bus.subscribe("edit", on_edit)
     bus.subscribe("drape/predicted", on_prediction)
+    bus.subscribe("tryon", on_tryon)
     bus.serve_solve(config.name, handle_solve)
 
     def abort() -> None:
