@@ -41,6 +41,7 @@ from schemas.messages import (
     SolveRequestMsg,
     SolveResultMsg,
     StatusMsg,
+    TryOnMsg,
 )
 
 EXPECTED_PRODUCERS = {
@@ -147,6 +148,7 @@ class Client:
             self.bus.declare_token(self.name)
             self._pattern_pub = self.bus.publisher("pattern", PatternMsg)
             self._edit_pub = self.bus.publisher("edit", EditMsg)
+            self._tryon_pub = self.bus.publisher("tryon", TryOnMsg)
             self.bus.subscribe("drape/*", self._on_drape, DrapeMsg)
             self.bus.subscribe("mesh/*", self._on_mesh, MeshMsg)
             self.bus.subscribe("status/*", self._on_status, StatusMsg)
@@ -358,6 +360,48 @@ class Client:
         )
         self._edit_pub.put(msg)
         return msg
+
+    def send_tryon(
+        self,
+        op: str,
+        panel: str = "",
+        *,
+        vector: np.ndarray | list[float] | None = None,
+        angle: float = 0.0,
+        seam: int = -1,
+        sewn: bool = True,
+        op_id: str = "",
+        generation: int | None = None,
+    ) -> TryOnMsg:
+        """Send one try-on op (``couture/tryon/v1``, couture.tryon: start, move,
+        rotate, drag, fix, unfix, sew, unsew); returns it (with its op_id).
+        The solver's drapes answering it carry the op_id as ``edit_id``
+        (:meth:`wait_tryon`)."""
+        msg = TryOnMsg(
+            op_id=op_id or uuid.uuid4().hex[:12],
+            op=op,  # type: ignore[arg-type]
+            panel=panel,
+            vector=Array.from_numpy(np.zeros(3) if vector is None else np.asarray(vector, np.float64)),
+            angle=float(angle),
+            seam=int(seam),
+            sewn=bool(sewn),
+            generation=self.current_generation if generation is None else generation,
+        )
+        self._tryon_pub.put(msg)
+        return msg
+
+    def wait_tryon(self, op_id: str, kind: str = "fine", timeout: float = 60.0) -> DrapeMsg:
+        """The final drape of ``kind`` answering try-on op ``op_id``; TimeoutError after ``timeout`` [s]."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                for m in reversed(self._drapes[kind]):
+                    if m.final and m.edit_id == op_id:
+                        return m
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError(f"no final drape/{kind} answering try-on {op_id} within {timeout:g} s")
+                self._cond.wait(min(left, 0.1))
 
     def wait_drape(
         self,

@@ -375,18 +375,17 @@ class Driver:
         """Publish a try-on op (make) or the golden's next one (check); wait for
         the final drape/fine answering it."""
         if self.replay is None:
-            msg = TryOnMsg(
-                op_id=f"{self.case.name}-{step}",
-                op=arg["op"],
-                panel=str(arg.get("panel", "")),
-                vector=np.asarray(arg.get("vector", [0.0, 0.0, 0.0]), np.float64),
+            self.tryon_pub.wait_matching(5.0)
+            msg = self.client.send_tryon(
+                arg["op"],
+                str(arg.get("panel", "")),
+                vector=arg.get("vector"),
                 angle=float(arg.get("angle", 0.0)),
                 seam=int(arg.get("seam", -1)),
                 sewn=bool(arg.get("sewn", True)),
+                op_id=f"{self.case.name}-{step}",
                 generation=self.generation,
             )
-            self.tryon_pub.wait_matching(5.0)
-            self.tryon_pub.put(msg)
         else:
             if self._next_tryon >= len(self.replay.tryons):
                 raise ValueError(f"golden {self.case.name}: step {step} needs a try-on op the golden does not hold")
@@ -394,21 +393,7 @@ class Driver:
             self._next_tryon += 1
             msg = decode(data, TryOnMsg)
             self.tryon_pub.put_raw(data)
-
-        def find() -> DrapeMsg | None:
-            return next(
-                (d for d in reversed(self.client.drapes("fine")) if d.final and d.edit_id == msg.op_id),
-                None,
-            )
-
-        deadline = time.monotonic() + self.timeout
-        while (d := find()) is None:
-            if time.monotonic() > deadline:
-                raise TimeoutError(
-                    f"golden {self.case.name}: step {step}: no final drape/fine answering try-on {msg.op} "
-                    f"{msg.op_id} within {self.timeout:g} s"
-                )
-            time.sleep(0.05)
+        d = self.client.wait_tryon(msg.op_id, "fine", timeout=self.timeout)
         self.say(
             f"step {step}: try-on {msg.op} {msg.panel or ''} -> residual {d.residual:.2e} "
             + ("converged" if d.converged else d.diagnosis)
