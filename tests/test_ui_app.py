@@ -529,3 +529,39 @@ def test_a_prediction_shows_its_distance_estimate_in_mm():
     assert "about 1.2 mm from equilibrium" in describe_frame(f)
     pending = DrapeFrame(np.zeros((3, 3)), "predicted", "gmls")
     assert "error estimate pending" in describe_frame(pending)
+
+
+def test_tryon_buttons_make_tryon_messages(ui):
+    """The Try-on folder: the panels of the mesh on screen, each button one
+    ``couture/tryon/v1`` op (a panel op without a panel sends nothing)."""
+    from couture.tryon import TORSO_AXIS_POINT
+    from nodes.ui.main import tryon_msg
+    from schemas.messages import TryOnMsg, decode, encode
+
+    sent: list[dict] = []
+    ui.on_tryon = sent.append
+    names = list(ui.demo_mesh.panel_names)
+    assert tuple(ui.tryon.panel.options) == ("(none)", *names)
+    ui.tryon.panel.value = "(none)"
+    assert ui.tryon.click("Drag around +") is None and not sent and "pick a panel" in ui.tryon.help.content
+    ui.tryon.panel.value = names[0]
+    ui.tryon.angle_deg.value = 30.0
+    ui.tryon.step_cm.value = 4.0
+    ui.tryon.click("Drag around -")
+    ui.tryon.click("Drag down")
+    ui.tryon.click("Move out")
+    ui.tryon.click("Sew next seam")
+    ui.tryon.click("Start sequential sewing")
+    assert [s["op"] for s in sent] == ["drag", "drag", "move", "sew", "start"]
+    msgs = [decode(encode(tryon_msg(s, generation=4)), TryOnMsg) for s in sent]
+    assert msgs[0].panel == names[0] and msgs[0].angle == pytest.approx(-np.pi / 6)
+    np.testing.assert_allclose(msgs[1].vector.numpy(), [0.0, -0.04, 0.0])
+    out = msgs[2].vector.numpy()
+    # outward: horizontal, 4 cm, from the torso axis towards the panel's centroid on screen
+    from couture.tryon import panel_vertices
+
+    c = ui.view3d.x[panel_vertices(ui.demo_mesh, names[0])].mean(axis=0) - TORSO_AXIS_POINT
+    assert out[1] == 0.0 and np.linalg.norm(out) == pytest.approx(0.04)
+    assert out[[0, 2]] @ c[[0, 2]] > 0
+    assert msgs[3].seam == -1 and msgs[4].sewn is False and all(m.generation == 4 for m in msgs)
+    ui.on_tryon = None

@@ -50,6 +50,7 @@ from couture.ui.pattern_view import PatternView
 from couture.ui.state import DrapeFrame
 from couture.ui.status import StatusPanel
 from couture.ui.tools import PatternTools
+from couture.ui.tryon_panel import TryOnPanel
 from schemas.design import Design
 
 log = logging.getLogger("couture.ui")
@@ -94,6 +95,8 @@ class CoutureUI:
         """cb(on) of the record toggle; the adapter answers with :meth:`set_record_note`"""
         self.on_solver_selected: Callable[[str], None] | None = None
         self.on_pick: Callable[[MaterialPoint], None] | None = None
+        self.on_tryon: Callable[[dict], None] | None = None
+        """cb(op) of the Try-on folder's buttons (TryOnMsg's fields); the adapter publishes it"""
         self.meshes: dict[str, GarmentMesh] = {}
         """newest mesh per level"""
         self.pattern: DraftedPattern | None = None
@@ -146,6 +149,11 @@ class CoutureUI:
             on_design=self.commit,
             on_solver=self.select_solver,
             on_field=self._show_field,
+        )
+        self.tryon = TryOnPanel(
+            self.server3d.gui,
+            lambda op: self.on_tryon and self.on_tryon(op),
+            drape=lambda: (self.view3d.mesh, self.view3d.x),
         )
         self.status = StatusPanel(self.server3d.gui)
         self.session = SessionPanel(
@@ -243,6 +251,7 @@ class CoutureUI:
         triangles are those on screen (e.g. re-sent with Ψ on a press) keeps
         the drape on screen instead of its initial positions."""
         self.meshes[mesh.level] = mesh
+        self.tryon.set_panels(list(mesh.panel_names))
         shown = self.view3d.mesh
         if shown is None or mesh.level == "fine" or shown.level == mesh.level:
             self.view3d.set_mesh(mesh)

@@ -43,7 +43,7 @@ from couture.ui.status import describe_frame
 from schemas.arrays import Array
 from schemas.convert import msg_to_mesh
 from schemas.design import Design
-from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg, StatusMsg
+from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg, StatusMsg, TryOnMsg
 
 log = logging.getLogger("couture.ui.node")
 
@@ -90,6 +90,7 @@ class UIAdapter:
         bus = node.bus
         self.pattern_pub = bus.publisher("pattern", PatternMsg)
         self.edit_pub = bus.publisher("edit", EditMsg)
+        self.tryon_pub = bus.publisher("tryon", TryOnMsg)
         self._own_edits: set[str] = set()
         self._drape_gen: dict[tuple[str, str], int] = {}
         self.view = ShownDesign()
@@ -104,6 +105,7 @@ class UIAdapter:
         """(send time, design identity) of the rejection shown (under ``_lock``)"""
         ui.on_design_changed = self.publish_design
         ui.on_edit = self.publish_edit
+        ui.on_tryon = self.publish_tryon
         ui.on_solver_selected = self.select_solver
         ui.on_record = self.record
         bus.subscribe("pattern", self.on_pattern)
@@ -140,6 +142,13 @@ class UIAdapter:
             generation = self.view.edit_generation()
         self.edit_pub.put(edit_msg(edit, generation))
         self.node.count("edit_out")
+
+    def publish_tryon(self, op: dict) -> None:
+        """A Try-on button: one ``couture/tryon/v1`` on the design shown."""
+        with self._lock:
+            generation = self.view.edit_generation()
+        self.tryon_pub.put(tryon_msg(op, generation))
+        self.node.count("tryon_out")
 
     # -- in (Zenoh threads: store and return)
     def on_pattern(self, msg: PatternMsg) -> None:
@@ -388,6 +397,20 @@ class UIAdapter:
 def _same_design(a: str, b: str) -> bool:
     """Both identities known and equal ('' is no identity: never the same)."""
     return bool(a) and a == b
+
+
+def tryon_msg(op: dict, generation: int) -> TryOnMsg:
+    """The message of a Try-on button's op (couture.ui.tryon_panel)."""
+    return TryOnMsg(
+        op_id=uuid.uuid4().hex[:12],
+        op=op["op"],
+        panel=str(op.get("panel", "")),
+        vector=np.asarray(op.get("vector", [0.0, 0.0, 0.0]), np.float64),
+        angle=float(op.get("angle", 0.0)),
+        seam=int(op.get("seam", -1)),
+        sewn=bool(op.get("sewn", True)),
+        generation=generation,
+    )
 
 
 def edit_msg(edit: Edit, generation: int) -> EditMsg:

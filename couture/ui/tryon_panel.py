@@ -1,0 +1,108 @@
+"""The "Try-on" folder on the 3D server's panel (Meng 2010 §6, couture.tryon):
+pick a panel, then move it, turn it, drag it around or up and down the body,
+fix or release it; sew the next seam or unsew the last; start sequential
+sewing with no seam sewn. Each button hands one op (the fields of a
+``couture/tryon/v1`` message) to ``on_op``; the solver applies it to its
+drape and re-solves."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable
+
+import numpy as np
+import viser
+
+NO_PANEL = "(none)"
+
+TryOnOp = dict[str, Any]
+"""op, panel, vector [m or axis], angle [rad], seam, sewn (TryOnMsg's fields)"""
+
+
+class TryOnPanel:
+    def __init__(
+        self,
+        gui: viser.GuiApi,
+        on_op: Callable[[TryOnOp], None],
+        drape: Callable[[], tuple[Any, Any]] = lambda: (None, None),
+    ):
+        """``drape()``: (mesh, x) on screen, for a panel's outward direction."""
+        self.on_op, self.drape = on_op, drape
+        with gui.add_folder("Try-on", expand_by_default=False):
+            self.help = gui.add_markdown("Pick a panel; each button re-drapes from the current drape.")
+            self.panel = gui.add_dropdown("panel", (NO_PANEL,), initial_value=NO_PANEL)
+            self.step_cm = gui.add_number("step [cm]", 2.0, min=0.1, max=30.0, step=0.1)
+            self.angle_deg = gui.add_number("angle [deg]", 10.0, min=0.5, max=180.0, step=0.5)
+            buttons: list[tuple[str, Callable[[], TryOnOp | None]]] = [
+                ("Move out", lambda: self._panel_op("move", vector=self._outward())),
+                ("Move up", lambda: self._panel_op("move", vector=[0.0, self._step(), 0.0])),
+                ("Move down", lambda: self._panel_op("move", vector=[0.0, -self._step(), 0.0])),
+                ("Rotate +", lambda: self._panel_op("rotate", angle=self._angle(), vector=[0.0, 0.0, 1.0])),
+                ("Rotate -", lambda: self._panel_op("rotate", angle=-self._angle(), vector=[0.0, 0.0, 1.0])),
+                ("Drag around +", lambda: self._panel_op("drag", angle=self._angle())),
+                ("Drag around -", lambda: self._panel_op("drag", angle=-self._angle())),
+                ("Drag up", lambda: self._panel_op("drag", vector=[0.0, self._step(), 0.0])),
+                ("Drag down", lambda: self._panel_op("drag", vector=[0.0, -self._step(), 0.0])),
+                ("Fix", lambda: self._panel_op("fix")),
+                ("Unfix", lambda: self._panel_op("unfix")),
+                ("Sew next seam", lambda: {"op": "sew", "seam": -1}),
+                ("Unsew last seam", lambda: {"op": "unsew", "seam": -1}),
+                ("Start sequential sewing", lambda: {"op": "start", "sewn": False}),
+            ]
+            self.buttons = {}
+            for label, make in buttons:
+
+                def click(_: viser.GuiEvent, make: Callable[[], TryOnOp | None] = make) -> None:
+                    self.press(make)
+
+                b = gui.add_button(label)
+                b.on_click(click)
+                self.buttons[label] = (b, make)
+
+    # -- what the buttons send
+    def _step(self) -> float:
+        return float(self.step_cm.value) / 100.0
+
+    def _angle(self) -> float:
+        return math.radians(float(self.angle_deg.value))
+
+    def _outward(self) -> list[float]:
+        """step along the horizontal direction from the torso axis to the
+        panel's centroid on screen (the front, +z, when nothing is shown)."""
+        from couture.tryon import TORSO_AXIS_POINT, panel_vertices
+
+        mesh, x = self.drape()
+        d = np.array([0.0, 0.0, 1.0])
+        if mesh is not None and x is not None and str(self.panel.value) in mesh.panel_names:
+            c = np.asarray(x)[panel_vertices(mesh, str(self.panel.value))].mean(axis=0) - TORSO_AXIS_POINT
+            c[1] = 0.0
+            if np.linalg.norm(c) > 1e-6:
+                d = c / np.linalg.norm(c)
+        return (self._step() * d).tolist()
+
+    def _panel_op(self, op: str, **kw: Any) -> TryOnOp | None:
+        panel = str(self.panel.value)
+        if panel == NO_PANEL:
+            self.help.content = f"**{op}**: pick a panel first."
+            return None
+        return {"op": op, "panel": panel, **kw}
+
+    def press(self, make: Callable[[], TryOnOp | None]) -> TryOnOp | None:
+        """Build one op and hand it to ``on_op`` (None: nothing sent, the help says why)."""
+        op = make()
+        if op is not None:
+            self.help.content = f"sent **{op['op']}**" + (f" on {op['panel']}" if op.get("panel") else "")
+            self.on_op(op)
+        return op
+
+    def click(self, label: str) -> TryOnOp | None:
+        """What clicking the button ``label`` does (tests drive the panel with it)."""
+        return self.press(self.buttons[label][1])
+
+    def set_panels(self, names: list[str]) -> None:
+        """The panels of the garment on screen."""
+        opts = (NO_PANEL, *names)
+        if tuple(self.panel.options) != opts:
+            keep = self.panel.value if self.panel.value in opts else NO_PANEL
+            self.panel.options = opts
+            self.panel.value = keep
