@@ -105,4 +105,4 @@ class TryOnPanel:
         if tuple(self.panel.options) != opts:
             keep = self.panel.value if self.panel.value in opts else NO_PANEL
             self.panel.options = opts
-            self.panel.value = keep
+            self.panel.value = keep  # type: ignore[misc]  # viser has the setter; mypy misses it
