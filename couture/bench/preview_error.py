@@ -12,7 +12,8 @@ signs). Per edit:
   cache holds only the equilibrium), with the node's configuration (friction
   state rebuilt from the drape, exact linearisation, no floor);
 - the truth: Newton from the prediction with the solver's own friction state
-  of the equilibrium (what the solver node does on release), to ``--tol``;
+  of the equilibrium, kept from the first iteration (what the solver node
+  does on release), to ``--tol``;
 - true error = largest vertex distance between prediction and truth, and the
   ratio estimate / true error; also the error of a frictionless
   linearisation of the same equilibrium (what the node did before).
@@ -24,6 +25,7 @@ edits whose estimate is within a factor 2 of the true error) to ``--out``.
 from __future__ import annotations
 
 import argparse
+import math
 import platform
 import time
 from pathlib import Path
@@ -49,14 +51,15 @@ def drape(kind: str, vertices: int, tol: float):
     design = load_design(EXAMPLES / GARMENTS[kind])
     res = mesh_pattern(validate(design), vertices, level="coarse")
     model = ClothModel(res.mesh, design.fabric, scene_from_design(design))
-    r = get_solver("newton").solve(model, res.mesh.x0.copy(), tol=tol, max_seconds=120)
+    # from the placement with friction at once, as the solver node drapes a coarse level
+    r = get_solver("newton").solve(model, res.mesh.x0.copy(), tol=tol, max_seconds=120, friction_after=math.inf)
     if not r.converged:
         raise RuntimeError(f"{kind}: the drape did not converge ({r.diagnosis})")
     return design, res, model, r.x
 
 
 def run(
-    kind: str, vertices: int, params, steps, tol: float, friction_after: float = 0.01, friction_every: int = 5
+    kind: str, vertices: int, params, steps, tol: float, friction_after: float = math.inf, friction_every: int = 5
 ) -> list[dict]:
     from couture.pattern.edit import edit_jacobian
     from couture.remesh import build_coordinates
@@ -150,10 +153,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--friction-after",
         type=float,
-        default=0.01,
+        default=float("inf"),
         help="the truth's Newton keeps the anchors when the prediction's relative residual is below this "
-        "(the solver's default 0.01: above it, it lets the cloth settle frictionless first); "
-        "a huge value keeps them always",
+        "(default inf: always, as the solver node does for a warm start from a prediction, "
+        "couture.solvers.service; 0.01 is the solvers' own schedule from a placement)",
     )
     ap.add_argument(
         "--friction-every",
@@ -186,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
         {
             "summary": summary,
             "rows": rows,
-            "truth_friction_after": a.friction_after,
+            "truth_friction_after": a.friction_after if math.isfinite(a.friction_after) else "inf",
             "truth_friction_every": a.friction_every,
             "machine": platform.platform(),
             "commit": source_commit(),

@@ -281,9 +281,13 @@ class SolveService:
                 return False
 
             at_once = level in self.friction_at_once or how in ("previous", "prediction")
-            opts = {"friction_after": math.inf} if at_once and hasattr(self.solver, "friction_after") else {}
             result = self.solver.solve(
-                lm.model, x0, tol=self.tol[level], max_seconds=self.max_seconds[level], callback=cb, **opts
+                lm.model,
+                x0,
+                tol=self.tol[level],
+                max_seconds=self.max_seconds[level],
+                callback=cb,
+                friction_after=math.inf if at_once else None,
             )
             lm.x = result.x
             lm.converged = result.converged

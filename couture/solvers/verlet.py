@@ -138,6 +138,7 @@ class VerletSolver:
         max_iters: int = 20_000,
         max_seconds: float = 60.0,
         callback: ProgressCallback | None = None,
+        friction_after: float | None = None,  # no friction schedule here: ignored
     ) -> SolveResult:
         t_start = time.perf_counter()
         sm = self.spring_model(model)
