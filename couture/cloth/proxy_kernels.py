@@ -1,0 +1,204 @@
+"""Numba kernels of the ellipsoid proxy (``couture.cloth.proxy``): the exact
+signed distance to one ellipsoid and to a union of ellipsoids, with explicit
+output arrays.
+
+An ellipsoid is (center c (3,), rotation R (3, 3) whose columns are its axes,
+semi-axes a (3,)); a world point p has local coordinates y = Rᵀ (p - c).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def ellipsoid_closest(y, a, x):
+    """Signed distance [m] from local point y (3,) to the ellipsoid of semi-axes
+    a (3,) (negative inside); writes the closest surface point into x (3,).
+
+    The closest point is x_i = a_i² y_i / (t + a_i²) with t the root of
+    F(t) = Σ (a_i y_i / (t + a_i²))² - 1 in t > -min a² (Eberly). With
+    s = t + min a² and b_i = a_i² - min a², F is convex and decreasing in s > 0,
+    so Newton from a point left of the root climbs to it monotonically; the
+    start is the largest of several lower bounds of the root."""
+    amin2 = min(a[0] * a[0], min(a[1] * a[1], a[2] * a[2]))
+    scale = max(a[0], max(a[1], a[2]))
+    tiny = 1e-13 * scale
+    yy = np.empty(3)
+    b = np.empty(3)
+    w = np.empty(3)
+    for i in range(3):
+        yy[i] = y[i]
+        b[i] = a[i] * a[i] - amin2
+    # y on a symmetry plane of the smallest axis: nudge it off so the root is
+    # bracketed (the limit is the degenerate solution of a point inside)
+    for i in range(3):
+        if b[i] == 0.0 and abs(yy[i]) < tiny:
+            yy[i] = tiny
+    bmax = max(b[0], max(b[1], b[2]))
+    norm_ay = 0.0
+    lo = 0.0
+    for i in range(3):
+        w[i] = (a[i] * yy[i]) ** 2
+        norm_ay += w[i]
+        lo = max(lo, a[i] * abs(yy[i]) - b[i])
+    lo = max(lo, np.sqrt(norm_ay) - bmax)
+    s = lo
+    for _ in range(200):
+        F = -1.0
+        dF = 0.0
+        for i in range(3):
+            d = s + b[i]
+            F += w[i] / (d * d)
+            dF -= 2.0 * w[i] / (d * d * d)
+        if F <= 0.0 or dF == 0.0:
+            break
+        step = -F / dF
+        s += step
+        if step <= 1e-15 * s:
+            break
+    f = 0.0
+    dist2 = 0.0
+    for i in range(3):
+        x[i] = a[i] * a[i] * yy[i] / (s + b[i])
+        f += (y[i] / a[i]) ** 2
+        dist2 += (y[i] - x[i]) ** 2
+    d = np.sqrt(dist2)
+    return d if f >= 1.0 else -d
+
+
+@njit(cache=True)
+def union_phi_grad(points, centers, rot, radii, rmax, phi, grad, which):
+    """Signed distance to the union of K ellipsoids, min_k of each one's exact
+    signed distance (exact outside the union; inside, the depth in the
+    deepest ellipsoid, a lower bound of the depth in the union), its gradient
+    (the outward unit normal at the closest point of the winning ellipsoid)
+    and that ellipsoid's index.
+
+    points (n, 3); centers (K, 3); rot (K, 3, 3); radii (K, 3); rmax (K,) the
+    largest semi-axis; outputs phi (n,), grad (n, 3), which (n,) int64.
+    |p - c_k| - rmax_k is a lower bound of ellipsoid k's signed distance (the
+    ellipsoid lies in that ball), so most ellipsoids are skipped unevaluated."""
+    K = centers.shape[0]
+    lb = np.empty(K)
+    y = np.empty(3)
+    x = np.empty(3)
+    for n in range(points.shape[0]):
+        first = 0
+        for k in range(K):
+            dx = points[n, 0] - centers[k, 0]
+            dy = points[n, 1] - centers[k, 1]
+            dz = points[n, 2] - centers[k, 2]
+            lb[k] = np.sqrt(dx * dx + dy * dy + dz * dz) - rmax[k]
+            if lb[k] < lb[first]:
+                first = k
+        best = np.inf
+        bk = -1
+        g0 = 0.0
+        g1 = 0.0
+        g2 = 0.0
+        for j in range(K + 1):
+            k = first if j == 0 else j - 1
+            if j > 0 and (k == first or lb[k] >= best):
+                continue
+            for i in range(3):
+                y[i] = (
+                    rot[k, 0, i] * (points[n, 0] - centers[k, 0])
+                    + rot[k, 1, i] * (points[n, 1] - centers[k, 1])
+                    + rot[k, 2, i] * (points[n, 2] - centers[k, 2])
+                )
+            d = ellipsoid_closest(y, radii[k], x)
+            if d < best:
+                best = d
+                bk = k
+                # outward normal at x: ∝ x / a², back to world
+                n0 = x[0] / (radii[k, 0] ** 2)
+                n1 = x[1] / (radii[k, 1] ** 2)
+                n2 = x[2] / (radii[k, 2] ** 2)
+                nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+                n0 /= nn
+                n1 /= nn
+                n2 /= nn
+                g0 = rot[k, 0, 0] * n0 + rot[k, 0, 1] * n1 + rot[k, 0, 2] * n2
+                g1 = rot[k, 1, 0] * n0 + rot[k, 1, 1] * n1 + rot[k, 1, 2] * n2
+                g2 = rot[k, 2, 0] * n0 + rot[k, 2, 1] * n1 + rot[k, 2, 2] * n2
+        phi[n] = best
+        grad[n, 0] = g0
+        grad[n, 1] = g1
+        grad[n, 2] = g2
+        which[n] = bk
+
+
+@njit(cache=True)
+def tree_phi_grad(points, roots, child0, child1, leaf_of, sph_c, sph_r, centers, rot, radii, phi, grad, which):
+    """union_phi_grad through a sphere tree (branch and bound): node m's ball
+    (sph_c[m], sph_r[m]) holds every leaf ellipsoid below it, so
+    |p - sph_c| - sph_r bounds their signed distances from below and a subtree
+    whose bound is no better than the best found is skipped.
+
+    roots (r,) node indices; child0/child1 (N,) children (-1 at a leaf);
+    leaf_of (N,) the leaf's index into centers/rot/radii (-1 inside);
+    outputs as union_phi_grad."""
+    N = child0.shape[0]
+    stack = np.empty(N + roots.shape[0] + 1, np.int64)
+    y = np.empty(3)
+    x = np.empty(3)
+    for n in range(points.shape[0]):
+        best = np.inf
+        bk = -1
+        g0 = 0.0
+        g1 = 0.0
+        g2 = 0.0
+        top = 0
+        for r in range(roots.shape[0]):
+            stack[top] = roots[r]
+            top += 1
+        while top > 0:
+            top -= 1
+            m = stack[top]
+            dx = points[n, 0] - sph_c[m, 0]
+            dy = points[n, 1] - sph_c[m, 1]
+            dz = points[n, 2] - sph_c[m, 2]
+            if np.sqrt(dx * dx + dy * dy + dz * dz) - sph_r[m] >= best:
+                continue
+            k = leaf_of[m]
+            if k < 0:
+                # nearer child last, so it is searched first
+                a = child0[m]
+                b = child1[m]
+                da = (points[n, 0] - sph_c[a, 0]) ** 2 + (points[n, 1] - sph_c[a, 1]) ** 2 + (points[n, 2] - sph_c[a, 2]) ** 2
+                db = (points[n, 0] - sph_c[b, 0]) ** 2 + (points[n, 1] - sph_c[b, 1]) ** 2 + (points[n, 2] - sph_c[b, 2]) ** 2
+                if da < db:
+                    stack[top] = b
+                    stack[top + 1] = a
+                else:
+                    stack[top] = a
+                    stack[top + 1] = b
+                top += 2
+                continue
+            for i in range(3):
+                y[i] = (
+                    rot[k, 0, i] * (points[n, 0] - centers[k, 0])
+                    + rot[k, 1, i] * (points[n, 1] - centers[k, 1])
+                    + rot[k, 2, i] * (points[n, 2] - centers[k, 2])
+                )
+            d = ellipsoid_closest(y, radii[k], x)
+            if d < best:
+                best = d
+                bk = k
+                n0 = x[0] / (radii[k, 0] ** 2)
+                n1 = x[1] / (radii[k, 1] ** 2)
+                n2 = x[2] / (radii[k, 2] ** 2)
+                nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+                n0 /= nn
+                n1 /= nn
+                n2 /= nn
+                g0 = rot[k, 0, 0] * n0 + rot[k, 0, 1] * n1 + rot[k, 0, 2] * n2
+                g1 = rot[k, 1, 0] * n0 + rot[k, 1, 1] * n1 + rot[k, 1, 2] * n2
+                g2 = rot[k, 2, 0] * n0 + rot[k, 2, 1] * n1 + rot[k, 2, 2] * n2
+        phi[n] = best
+        grad[n, 0] = g0
+        grad[n, 1] = g1
+        grad[n, 2] = g2
+        which[n] = bk
