@@ -441,7 +441,9 @@ class EllipsoidProxyBody:
     ellipsoid wins. No ``phi_hess``: models fall back to their Gauss-Newton
     contact block."""
 
-    def __init__(self, nodes: list[ProxyNode]):
+    def __init__(self, nodes: list[ProxyNode], grid_cell: float | None = 0.03):
+        """grid_cell [m]: cell of the candidate grid that answers phi_grad near
+        the body (None: the sphere tree alone)."""
         if not nodes:
             raise ValueError("EllipsoidProxyBody needs at least one node")
         self.nodes = nodes
@@ -470,6 +472,40 @@ class EllipsoidProxyBody:
             if self.child0[i] >= 0:
                 c = [self.child0[i], self.child1[i]]
                 self.sph_r[i] = max(np.linalg.norm(self.sph_c[j] - self.sph_c[i]) + self.sph_r[j] for j in c)
+        self.grid_origin = None
+        if grid_cell is not None:
+            self._build_grid(grid_cell)
+
+    def _build_grid(self, cell: float = 0.03, margin: float = 0.1, band: float = 0.06) -> None:
+        """Candidate leaves per cell of a regular grid over the leaves' extent
+        grown by ``margin`` [m] (cell_candidates), for cells whose centre is
+        within ``band`` [m] outside the proxy (or inside it); points elsewhere
+        go through the sphere tree."""
+        lo = (self.centers - self.rmax[:, None]).min(axis=0) - margin
+        hi = (self.centers + self.rmax[:, None]).max(axis=0) + margin
+        shape = np.ceil((hi - lo) / cell).astype(np.int64)
+        axes = [lo[d] + cell * (np.arange(shape[d]) + 0.5) for d in range(3)]
+        C = np.ascontiguousarray(np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3))
+        phi_c = self._tree(C)[0]
+        keep = np.empty((len(C), self.n_ellipsoids), dtype=np.bool_)
+        PK.cell_candidates(C, 0.5 * np.sqrt(3.0) * cell, phi_c, self.centers, self.rot, self.radii, keep)
+        far = phi_c > band  # the tree answers there: one leaf or two are near
+        keep[far] = False
+        cnt = keep.sum(axis=1)
+        self.grid_origin, self.grid_cell, self.grid_shape = lo, float(cell), shape
+        self.cell_start = np.r_[0, np.cumsum(cnt)].astype(np.int64)
+        self.cell_far = far
+        self.cell_items = np.ascontiguousarray(np.nonzero(keep)[1], dtype=np.int64)
+
+    def _tree(self, p):
+        phi = np.empty(len(p))
+        grad = np.empty((len(p), 3))
+        which = np.empty(len(p), np.int64)
+        PK.tree_phi_grad(
+            p, self.roots, self.child0, self.child1, self.leaf_of, self.sph_c, self.sph_r,
+            self.centers, self.rot, self.radii, phi, grad, which,
+        )  # fmt: skip
+        return phi, grad, which
 
     @property
     def n_ellipsoids(self) -> int:
@@ -480,13 +516,18 @@ class EllipsoidProxyBody:
         p = np.ascontiguousarray(points, dtype=np.float64)
         if p.ndim != 2 or p.shape[1] != 3:
             raise ValueError(f"points must be (n, 3), got shape {p.shape}")
+        if self.grid_origin is None:
+            return self._tree(p)
         phi = np.empty(len(p))
         grad = np.empty((len(p), 3))
         which = np.empty(len(p), np.int64)
-        PK.tree_phi_grad(
-            p, self.roots, self.child0, self.child1, self.leaf_of, self.sph_c, self.sph_r,
-            self.centers, self.rot, self.radii, phi, grad, which,
+        out = np.empty(len(p), np.bool_)
+        PK.grid_phi_grad(
+            p, self.grid_origin, self.grid_cell, self.grid_shape, self.cell_start, self.cell_items, self.cell_far,
+            self.centers, self.rot, self.radii, phi, grad, which, out,
         )  # fmt: skip
+        if out.any():
+            phi[out], grad[out], which[out] = self._tree(np.ascontiguousarray(p[out]))
         return phi, grad, which
 
     def phi_grad_brute(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -628,24 +669,22 @@ def save_nodes(path, nodes: list[ProxyNode]) -> None:
 
 
 def load_nodes(path) -> list[ProxyNode]:
-    with np.load(path) as z:
-        regions = json.loads(str(z["region"]))
-        nodes = []
-        for i in range(len(z["depth"])):
-            nodes.append(
-                ProxyNode(
-                    ellipsoid=Ellipsoid(z["center"][i].copy(), z["rot"][i].copy(), z["radii"][i].copy()),
-                    region=regions[i],
-                    depth=int(z["depth"][i]),
-                    parent=int(z["parent"][i]),
-                    met=bool(z["met"][i]),
-                    cut=None if np.isnan(z["cut_off"][i]) else (z["cut_u"][i].copy(), float(z["cut_off"][i])),
-                    **{
-                        f: (int(z[f][i]) if f.startswith("n_") else float(z[f][i]))
-                        for f in _STAT_FIELDS
-                    },
-                )
+    with np.load(path) as npz:
+        z = {k: npz[k] for k in npz.files}  # read each array once
+    regions = json.loads(str(z["region"]))
+    nodes = []
+    for i in range(len(z["depth"])):
+        nodes.append(
+            ProxyNode(
+                ellipsoid=Ellipsoid(z["center"][i].copy(), z["rot"][i].copy(), z["radii"][i].copy()),
+                region=regions[i],
+                depth=int(z["depth"][i]),
+                parent=int(z["parent"][i]),
+                met=bool(z["met"][i]),
+                cut=None if np.isnan(z["cut_off"][i]) else (z["cut_u"][i].copy(), float(z["cut_off"][i])),
+                **{f: (int(z[f][i]) if f.startswith("n_") else float(z[f][i])) for f in _STAT_FIELDS},
             )
+        )
     for i, n in enumerate(nodes):
         if n.parent >= 0:
             nodes[n.parent].children.append(i)

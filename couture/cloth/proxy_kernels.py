@@ -183,6 +183,93 @@ def tree_phi_grad(points, roots, child0, child1, leaf_of, sph_c, sph_r, centers,
                     + rot[k, 1, i] * (points[n, 1] - centers[k, 1])
                     + rot[k, 2, i] * (points[n, 2] - centers[k, 2])
                 )
+            # the affine map to the unit sphere stretches lengths by a_min..a_max,
+            # so the signed distance is at least a_min (r - 1) outside, a_max (r - 1) inside
+            r = np.sqrt((y[0] / radii[k, 0]) ** 2 + (y[1] / radii[k, 1]) ** 2 + (y[2] / radii[k, 2]) ** 2)
+            if r >= 1.0:
+                bound = (r - 1.0) * min(radii[k, 0], min(radii[k, 1], radii[k, 2]))
+            else:
+                bound = (r - 1.0) * max(radii[k, 0], max(radii[k, 1], radii[k, 2]))
+            if bound >= best:
+                continue
+            d = ellipsoid_closest(y, radii[k], x)
+            if d < best:
+                best = d
+                bk = k
+                n0 = x[0] / (radii[k, 0] ** 2)
+                n1 = x[1] / (radii[k, 1] ** 2)
+                n2 = x[2] / (radii[k, 2] ** 2)
+                nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+                n0 /= nn
+                n1 /= nn
+                n2 /= nn
+                g0 = rot[k, 0, 0] * n0 + rot[k, 0, 1] * n1 + rot[k, 0, 2] * n2
+                g1 = rot[k, 1, 0] * n0 + rot[k, 1, 1] * n1 + rot[k, 1, 2] * n2
+                g2 = rot[k, 2, 0] * n0 + rot[k, 2, 1] * n1 + rot[k, 2, 2] * n2
+        phi[n] = best
+        grad[n, 0] = g0
+        grad[n, 1] = g1
+        grad[n, 2] = g2
+        which[n] = bk
+
+
+@njit(cache=True, inline="always")
+def _bound(px, py, pz, k, centers, rot, radii, y):
+    """Lower bound of ellipsoid k's signed distance at p (a_min (r - 1) outside,
+    a_max (r - 1) inside); leaves the local coordinates in y."""
+    for i in range(3):
+        y[i] = rot[k, 0, i] * (px - centers[k, 0]) + rot[k, 1, i] * (py - centers[k, 1]) + rot[k, 2, i] * (pz - centers[k, 2])
+    r = np.sqrt((y[0] / radii[k, 0]) ** 2 + (y[1] / radii[k, 1]) ** 2 + (y[2] / radii[k, 2]) ** 2)
+    amax = max(radii[k, 0], max(radii[k, 1], radii[k, 2]))
+    # and the ball of radius a_max: |p - c| - a_max (tighter far from a flat one)
+    ball = np.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) - amax
+    if r >= 1.0:
+        return max(ball, (r - 1.0) * min(radii[k, 0], min(radii[k, 1], radii[k, 2])))
+    return max(ball, (r - 1.0) * amax)
+
+
+@njit(cache=True)
+def cell_candidates(cell_centers, half_diag, center_phi, centers, rot, radii, keep):
+    """keep (n_cells, K) bool: leaf k can be the nearest (lowest signed distance)
+    somewhere in the cell: bound_k(c) - h <= min_j phi_j(c) + h (phi is
+    1-Lipschitz, so within the cell phi_k >= bound_k(c) - h and the minimum is
+    <= its value at the centre + h)."""
+    y = np.empty(3)
+    for c in range(cell_centers.shape[0]):
+        lim = center_phi[c] + 2.0 * half_diag
+        for k in range(centers.shape[0]):
+            keep[c, k] = _bound(cell_centers[c, 0], cell_centers[c, 1], cell_centers[c, 2], k, centers, rot, radii, y) <= lim
+
+
+@njit(cache=True)
+def grid_phi_grad(points, origin, cell, shape, cell_start, cell_items, cell_far, centers, rot, radii, phi, grad, which, outside):
+    """union_phi_grad over each point's cell's candidate leaves (cell_items
+    [cell_start[c]:cell_start[c+1]]); a point outside the grid, or in a cell
+    far from the body (cell_far[c]), is only marked in
+    outside (n,) bool for the caller to answer."""
+    y = np.empty(3)
+    x = np.empty(3)
+    for n in range(points.shape[0]):
+        ix = int(np.floor((points[n, 0] - origin[0]) / cell))
+        iy = int(np.floor((points[n, 1] - origin[1]) / cell))
+        iz = int(np.floor((points[n, 2] - origin[2]) / cell))
+        if ix < 0 or iy < 0 or iz < 0 or ix >= shape[0] or iy >= shape[1] or iz >= shape[2]:
+            outside[n] = True
+            continue
+        c = (ix * shape[1] + iy) * shape[2] + iz
+        if cell_far[c]:
+            outside[n] = True
+            continue
+        outside[n] = False
+        best = np.inf
+        bk = -1
+        g0 = 0.0
+        g1 = 0.0
+        g2 = 0.0
+        for j in range(cell_start[c], cell_start[c + 1]):
+            k = cell_items[j]
+            if _bound(points[n, 0], points[n, 1], points[n, 2], k, centers, rot, radii, y) >= best:
+                continue
             d = ellipsoid_closest(y, radii[k], x)
             if d < best:
                 best = d
