@@ -227,6 +227,11 @@ class BodySamples:
     at vertices, face normals at samples"""
     is_vertex: np.ndarray
     """(ns,) bool: True for a mesh vertex, False for a triangle sample"""
+    volume_ijk: np.ndarray | None = None
+    """(nv, 3) int: lattice indices of the volume points, when they come from a
+    regular grid (then each cluster is fitted with its volume grown by one
+    cell (face neighbours), so neighbouring ellipsoids overlap across their cut and leave no
+    gap inside the body)"""
 
 
 def sample_triangles(vertices, faces, per_triangle: float = 4.0, seed: int = 0):
@@ -272,10 +277,12 @@ def body_samples(vertices, faces, sdf, volume_spacing: float = 0.01, per_triangl
     lo, hi = V.min(axis=0), V.max(axis=0)
     axes = [np.arange(lo[d] + 0.5 * volume_spacing, hi[d], volume_spacing) for d in range(3)]
     G = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    vol = G[sdf(G) < 0.0]
+    I = np.stack(np.meshgrid(*[np.arange(len(a)) for a in axes], indexing="ij"), axis=-1).reshape(-1, 3)
+    inside = sdf(G) < 0.0
     S, Sn = sample_triangles(V, faces, per_triangle)
     return BodySamples(
-        volume=vol,
+        volume=G[inside],
+        volume_ijk=I[inside],
         surface=np.vstack([V, S]),
         normals=np.vstack([vertex_normals(V, faces), Sn]),
         is_vertex=np.r_[np.ones(len(V), bool), np.zeros(len(S), bool)],
@@ -351,7 +358,7 @@ def build_hierarchy(
     sdf: Callable[[np.ndarray], np.ndarray] | None = None,
     method: str = "mvee",
     two_sided: bool = True,
-    min_points: int = 8,
+    min_points: int = 4,
     max_depth: int = 20,
     n_shell: int = 600,
     progress: str | None = None,
@@ -361,8 +368,7 @@ def build_hierarchy(
 
     regions(points) -> name per point (None: one region 'torso'); thresholds
     [m] per region name or class (default DEFAULT_THRESHOLDS). A cluster is
-    split in two across the principal axis (of its three) whose halves have
-    the smaller worst error, at the median of its volume points along it,
+    split in two across its longest axis at the median of its volume points,
     while its error (max normal distance over its surface points, and with
     ``two_sided`` the overshoot measured with ``sdf``) exceeds its threshold,
     unless it holds fewer than ``min_points`` points or is
@@ -387,8 +393,21 @@ def build_hierarchy(
         stack.append((np.nonzero(rv == name)[0], np.nonzero(rs == name)[0], name, thr, 0, -1))
     over_sdf = sdf if two_sided else None
 
+    grow = None
+    if samples.volume_ijk is not None and len(vol):
+        ijk = np.asarray(samples.volume_ijk, np.int64) + 1
+        dims = ijk.max(axis=0) + 2
+        lattice = np.full(tuple(dims), -1, np.int64)
+        lattice[tuple(ijk.T)] = np.arange(len(vol))
+        # the six face neighbours: enough to close the slab between two halves
+        steps = np.array([(0, 0, 0), (1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)])
+
+        def grow(iv):
+            nb = lattice[tuple((ijk[iv][:, None, :] + steps[None]).reshape(-1, 3).T)]
+            return np.unique(nb[nb >= 0])
+
     def make(iv, isf):
-        P = np.vstack([vol[iv], surf[isf]])
+        P = np.vstack([vol[iv if grow is None else grow(iv)], surf[isf]])
         ell = fit_ellipsoid(P, method)
         return ell, _cluster_stats(ell, surf[isf], nrm[isf], isv[isf], over_sdf, n_shell)
 
@@ -709,7 +728,9 @@ def build_mannequin_proxy(thresholds: dict[str, float] | None = None, verbose: b
     return EllipsoidProxyBody(nodes)
 
 
-PROXY_VERSION = 1
+PROXY_VERSION = 2
+_LOADED: dict[str, EllipsoidProxyBody] = {}
+"""proxies loaded in this process, by cache file (a solver asks once per solve)"""
 
 
 def load_mannequin_proxy(thresholds: dict[str, float] | None = None, verbose: bool = True) -> EllipsoidProxyBody:
@@ -723,9 +744,12 @@ def load_mannequin_proxy(thresholds: dict[str, float] | None = None, verbose: bo
     )
     digest = hashlib.sha1(MANNEQUIN_OBJ.read_bytes() + key.encode()).hexdigest()[:12]
     path = cache_dir() / f"mannequin_proxy_{digest}_v{PROXY_VERSION}.npz"
+    if str(path) in _LOADED:
+        return _LOADED[str(path)]
     if path.exists():
-        return EllipsoidProxyBody(load_nodes(path))
-    body = build_mannequin_proxy(thr, verbose=verbose)
+        body = _LOADED[str(path)] = EllipsoidProxyBody(load_nodes(path))
+        return body
+    body = _LOADED[str(path)] = build_mannequin_proxy(thr, verbose=verbose)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(f".tmp{os.getpid()}.npz")
     save_nodes(tmp, body.nodes)
