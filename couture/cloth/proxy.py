@@ -154,23 +154,24 @@ def fit_ellipsoid(points: np.ndarray, method: str = "mvee", tol: float = 5e-3) -
     """An ellipsoid bounding points (m, 3) [m]: every point on or inside it.
 
     'mvee': Khachiyan's minimum-volume enclosing ellipsoid of the convex hull's
-    vertices (tightest in volume); 'pca': centred on the points' bounding box
+    vertices (tightest in volume; 'pca' for fewer than 4 points); 'pca': centred on the points' bounding box
     in their principal frame, axes along the principal directions, radii
     ∝ the spread along each and scaled to enclose. Both end with an exact
     rescale so the farthest point lies on the surface (Khachiyan's tolerance
     does not leave points outside). Degenerate (flat) point sets get a
-    thickness of 1e-4 x their size."""
+    thickness of 1e-4 x their size (at least 10 µm)."""
     P = np.asarray(points, dtype=np.float64)
-    if P.ndim != 2 or P.shape[1] != 3 or len(P) < 4:
-        raise ValueError(f"fit_ellipsoid needs (m >= 4, 3) points, got shape {P.shape}")
+    if P.ndim != 2 or P.shape[1] != 3 or len(P) < 2:
+        raise ValueError(f"fit_ellipsoid needs (m >= 2, 3) points, got shape {P.shape}")
     if not np.isfinite(P).all():
         raise ValueError("fit_ellipsoid: points hold NaN or infinity")
     mean = P.mean(axis=0)
     _, sv, Vt = np.linalg.svd(P - mean, full_matrices=False)
     size = float(np.ptp(P, axis=0).max())
-    floor = 1e-4 * max(size, 1e-9)
-    if method == "pca" or sv[2] < 1e-9 * max(sv[0], 1e-300):
-        R = Vt.T
+    floor = max(1e-4 * size, 1e-5)
+    sv = np.r_[sv, np.zeros(3 - len(sv))]
+    if method == "pca" or len(P) < 4 or sv[2] < 1e-9 * max(sv[0], 1e-300):
+        R = np.linalg.svd(np.vstack([P - mean, np.zeros((3, 3))]))[2].T  # a full frame for m < 3
         y = (P - mean) @ R
         center = mean + R @ (0.5 * (y.max(axis=0) + y.min(axis=0)))
         spread = np.maximum(0.5 * np.ptp(y, axis=0), floor)
@@ -358,7 +359,7 @@ def build_hierarchy(
     sdf: Callable[[np.ndarray], np.ndarray] | None = None,
     method: str = "mvee",
     two_sided: bool = True,
-    min_points: int = 4,
+    min_points: int = 3,
     max_depth: int = 20,
     n_shell: int = 600,
     progress: str | None = None,
@@ -413,8 +414,6 @@ def build_hierarchy(
 
     while stack:
         iv, isf, name, thr, depth, parent = stack.pop()
-        if len(iv) + len(isf) < 4:
-            continue
         ell, st = make(iv, isf)
         node = ProxyNode(ellipsoid=ell, region=name, threshold=thr, depth=depth, parent=parent, n_volume=len(iv), **st)
         idx = len(nodes)
@@ -432,9 +431,15 @@ def build_hierarchy(
         # trying all three axes for the smaller worst error made thin slabs)
         u = ell.rot[:, 0]
         pv, ps = vol[iv] @ u, surf[isf] @ u
-        cut = float(np.median(pv)) if len(pv) >= 8 else float(np.median(np.r_[pv, ps]))
+        # halfway between the two middle values: no point sits on the cut, so
+        # membership does not hang on the rounding of p·u
+        q = np.sort(pv if len(pv) >= 8 else np.r_[pv, ps])
+        allq = np.sort(np.r_[pv, ps])
+        mid = q[len(q) // 2]
+        j = int(np.searchsorted(allq, mid))
+        cut = 0.5 * (allq[j - 1] + allq[j]) if j > 0 else float(mid)
         halves = [(iv[pv < cut], isf[ps < cut]), (iv[pv >= cut], isf[ps >= cut])]
-        if any(len(a) + len(b) < 4 for a, b in halves):
+        if any(len(a) + len(b) < 2 for a, b in halves):
             node.met = False
             continue
         node.cut = (u.copy(), cut)
@@ -562,11 +567,12 @@ class EllipsoidProxyBody:
         phi, grad, _ = self.phi_grad_which(points)
         return phi, grad
 
-    def nearest(self, points: np.ndarray, max_iter: int = 8) -> tuple[np.ndarray, np.ndarray]:
-        """Closest point on the proxy's surface and the outward normal there,
-        ((n, 3), (n, 3)). Outside the union one step is exact; a point inside
-        goes to its deepest ellipsoid's surface, which may lie inside another
-        one, so it is pushed out again until it is on the union's surface."""
+    def nearest(self, points: np.ndarray, max_iter: int = 64) -> tuple[np.ndarray, np.ndarray]:
+        """A point on the proxy's surface and the outward normal there, ((n, 3),
+        (n, 3)): for a point outside the union the closest one (one exact step);
+        a point inside goes to its deepest ellipsoid's surface, which may lie
+        inside another one, so it is pushed out again until it is on the
+        union's surface (a near point, not always the nearest)."""
         q = np.array(points, dtype=np.float64)
         phi, grad = self.phi_grad(q)
         q -= phi[:, None] * grad
@@ -728,7 +734,7 @@ def build_mannequin_proxy(thresholds: dict[str, float] | None = None, verbose: b
     return EllipsoidProxyBody(nodes)
 
 
-PROXY_VERSION = 2
+PROXY_VERSION = 4
 _LOADED: dict[str, EllipsoidProxyBody] = {}
 """proxies loaded in this process, by cache file (a solver asks once per solve)"""
 
