@@ -4,8 +4,8 @@
   normal distance (max and mean) from the mesh vertices and from points
   sampled on the triangles, and the overshoot (how far the proxy's surface
   stands out of the body), as the build measured them; plus a check with the
-  exact mesh distance: the true signed distance at the proxy's surface
-  (points of the mesh pushed onto the proxy surface by ``nearest``).
+  exact mesh distance: the true signed distance where rays from 5 cm out
+  along the vertex normals meet the proxy (``raycast``).
 - Queries per 10k points (``phi_grad``), points near the body (within 5 cm
   of its surface) and in its bounding box: proxy (sphere tree), proxy with
   every leaf tried, grid SDF (B-spline).
@@ -62,15 +62,24 @@ def query_times(proxy, grid, V, F, n=10_000, seed=0):
     return out
 
 
-def surface_check(proxy, dist, V):
-    """True signed distance [m] of the proxy's surface near each mesh vertex
-    (the vertex moved to the nearest proxy surface point)."""
-    q, _ = proxy.nearest(V)
-    d = dist(q)
+def surface_check(proxy, dist, V, F):
+    """How far the proxy's surface lies from the body, by the exact mesh
+    distance: rays from 5 cm out along each vertex normal back towards the
+    vertex, where they meet the proxy (picking); and the proxy's phi at the
+    vertices (<= 0: the body is inside the proxy)."""
+    from couture.cloth.proxy import vertex_normals
+
+    N = vertex_normals(V, F)
+    hit, t, q, _, _ = proxy.raycast(V + 0.05 * N, -N)
+    started_inside = hit & (t == 0)
+    ok = hit & ~started_inside
+    d = dist(q[ok])
     return {
-        "true_sd_at_proxy_surface_max_m": float(d.max()),
-        "true_sd_at_proxy_surface_mean_m": float(d.mean()),
-        "true_sd_at_proxy_surface_min_m": float(d.min()),
+        "rays": int(len(V)),
+        "rays_starting_inside_proxy": int(started_inside.sum()),
+        "true_sd_at_proxy_hit_max_m": float(d.max()),
+        "true_sd_at_proxy_hit_mean_m": float(d.mean()),
+        "true_sd_at_proxy_hit_min_m": float(d.min()),
         "proxy_phi_at_vertices_max_m": float(proxy.phi_grad(V)[0].max()),
     }
 
@@ -78,13 +87,13 @@ def surface_check(proxy, dist, V):
 def verlet_contact(steps: int, dist, level="coarse"):
     """The default skirt draped by Verlet for ``steps`` steps with each contact body."""
     from couture.bench.solver import skirt_models
-    from couture.solvers import get_solver
+    from couture.solvers.verlet import VerletSolver
 
     makers, meshes, _, _ = skirt_models(levels=(level,))
     rows = {}
     for contact in ("sdf", "proxy"):
         model = makers[level](level)
-        solver = get_solver("verlet", contact=contact)
+        solver = VerletSolver(contact=contact)
         solver.contact_body(model)  # load (or build) outside the timing
         res = solver.solve(model, model.mesh.x0, tol=0.0, max_iters=steps, max_seconds=600.0)
         d = dist(res.x)
@@ -150,7 +159,7 @@ def plot(proxy, V, path: Path) -> None:
     fig.suptitle(f"mannequin ellipsoid proxy: {proxy.n_ellipsoids} leaves (colour: region)")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=90)
     plt.close(fig)
 
 
@@ -172,7 +181,9 @@ def main(argv=None) -> int:
     build_s = time.perf_counter() - t
     dist = TriangleMeshDistance(V, F)
     regions = proxy.region_stats()
-    print(f"{proxy.n_ellipsoids} leaf ellipsoids ({len(proxy.nodes)} nodes); {'built' if args.rebuild else 'loaded'} in {build_s:.1f} s")
+    print(
+        f"{proxy.n_ellipsoids} leaf ellipsoids ({len(proxy.nodes)} nodes); {'built' if args.rebuild else 'loaded'} in {build_s:.1f} s"
+    )
     print(
         f"{'region':7} {'thr mm':>6} {'leaves':>6} {'unmet':>5} {'MND v max':>9} {'v mean':>6} "
         f"{'MND s max':>9} {'s mean':>6} {'over mm':>7}"
@@ -183,8 +194,13 @@ def main(argv=None) -> int:
             f"{1e3 * r['mnd_vertex_max_m']:9.1f} {1e3 * r['mnd_vertex_mean_m']:6.1f} "
             f"{1e3 * r['mnd_sample_max_m']:9.1f} {1e3 * r['mnd_sample_mean_m']:6.1f} {1e3 * r['overshoot_max_m']:7.1f}"
         )
-    check = surface_check(proxy, dist, V)
-    print("exact-distance check:", {k: round(1e3 * v, 2) for k, v in check.items()}, "[mm]")
+    check = surface_check(proxy, dist, V, F)
+    print(
+        f"exact-distance check: rays 5 cm out along the vertex normals meet the proxy at true distance "
+        f"min {1e3 * check['true_sd_at_proxy_hit_min_m']:.1f} / mean {1e3 * check['true_sd_at_proxy_hit_mean_m']:.1f} / "
+        f"max {1e3 * check['true_sd_at_proxy_hit_max_m']:.1f} mm ({check['rays_starting_inside_proxy']} of "
+        f"{check['rays']} start inside it); proxy phi at the vertices <= {1e3 * check['proxy_phi_at_vertices_max_m']:.2g} mm"
+    )
     qt = query_times(proxy, grid, V, F)
     for k, v in qt.items():
         print(f"phi_grad per 10k points, {k}: " + ", ".join(f"{a} {b:.2f}" for a, b in v.items()))

@@ -36,7 +36,7 @@ import os
 import sys
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -446,7 +446,12 @@ def build_hierarchy(
         for a, b in reversed(halves):  # first half popped (and numbered) first
             stack.append((a, b, name, thr, depth + 1, idx))
         if progress and len(nodes) % 200 == 0:
-            print(f"\r{progress}: {len(nodes)} nodes, {time.perf_counter() - t0:.1f} s", end="", file=sys.stderr, flush=True)
+            print(
+                f"\r{progress}: {len(nodes)} nodes, {time.perf_counter() - t0:.1f} s",
+                end="",
+                file=sys.stderr,
+                flush=True,
+            )
     if progress:
         print(f"\r{progress}: {len(nodes)} nodes, {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     return nodes
@@ -677,7 +682,7 @@ _STAT_FIELDS = (
 
 
 def save_nodes(path, nodes: list[ProxyNode]) -> None:
-    arrays = dict(
+    arrays: dict[str, Any] = dict(
         center=np.array([n.ellipsoid.center for n in nodes]),
         rot=np.array([n.ellipsoid.rot for n in nodes]),
         radii=np.array([n.ellipsoid.radii for n in nodes]),
@@ -699,6 +704,7 @@ def load_nodes(path) -> list[ProxyNode]:
     regions = json.loads(str(z["region"]))
     nodes = []
     for i in range(len(z["depth"])):
+        stats: dict[str, Any] = {f: (int(z[f][i]) if f.startswith("n_") else float(z[f][i])) for f in _STAT_FIELDS}
         nodes.append(
             ProxyNode(
                 ellipsoid=Ellipsoid(z["center"][i].copy(), z["rot"][i].copy(), z["radii"][i].copy()),
@@ -707,7 +713,7 @@ def load_nodes(path) -> list[ProxyNode]:
                 parent=int(z["parent"][i]),
                 met=bool(z["met"][i]),
                 cut=None if np.isnan(z["cut_off"][i]) else (z["cut_u"][i].copy(), float(z["cut_off"][i])),
-                **{f: (int(z[f][i]) if f.startswith("n_") else float(z[f][i])) for f in _STAT_FIELDS},
+                **stats,
             )
         )
     for i, n in enumerate(nodes):
@@ -746,7 +752,11 @@ def load_mannequin_proxy(thresholds: dict[str, float] | None = None, verbose: bo
 
     thr = dict(DEFAULT_THRESHOLDS if thresholds is None else thresholds)
     key = json.dumps(
-        dict(t=sorted(thr.items()), v=PROXY_VERSION, lm=[MANNEQUIN_CROTCH_Y, MANNEQUIN_NECK_Y, MANNEQUIN_ARM_X, MANNEQUIN_ARM_LOW_Y])
+        dict(
+            t=sorted(thr.items()),
+            v=PROXY_VERSION,
+            lm=[MANNEQUIN_CROTCH_Y, MANNEQUIN_NECK_Y, MANNEQUIN_ARM_X, MANNEQUIN_ARM_LOW_Y],
+        )
     )
     digest = hashlib.sha1(MANNEQUIN_OBJ.read_bytes() + key.encode()).hexdigest()[:12]
     path = cache_dir() / f"mannequin_proxy_{digest}_v{PROXY_VERSION}.npz"

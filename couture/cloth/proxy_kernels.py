@@ -167,8 +167,16 @@ def tree_phi_grad(points, roots, child0, child1, leaf_of, sph_c, sph_r, centers,
                 # nearer child last, so it is searched first
                 a = child0[m]
                 b = child1[m]
-                da = (points[n, 0] - sph_c[a, 0]) ** 2 + (points[n, 1] - sph_c[a, 1]) ** 2 + (points[n, 2] - sph_c[a, 2]) ** 2
-                db = (points[n, 0] - sph_c[b, 0]) ** 2 + (points[n, 1] - sph_c[b, 1]) ** 2 + (points[n, 2] - sph_c[b, 2]) ** 2
+                da = (
+                    (points[n, 0] - sph_c[a, 0]) ** 2
+                    + (points[n, 1] - sph_c[a, 1]) ** 2
+                    + (points[n, 2] - sph_c[a, 2]) ** 2
+                )
+                db = (
+                    (points[n, 0] - sph_c[b, 0]) ** 2
+                    + (points[n, 1] - sph_c[b, 1]) ** 2
+                    + (points[n, 2] - sph_c[b, 2]) ** 2
+                )
                 if da < db:
                     stack[top] = b
                     stack[top + 1] = a
@@ -218,7 +226,11 @@ def _bound(px, py, pz, k, centers, rot, radii, y):
     """Lower bound of ellipsoid k's signed distance at p (a_min (r - 1) outside,
     a_max (r - 1) inside); leaves the local coordinates in y."""
     for i in range(3):
-        y[i] = rot[k, 0, i] * (px - centers[k, 0]) + rot[k, 1, i] * (py - centers[k, 1]) + rot[k, 2, i] * (pz - centers[k, 2])
+        y[i] = (
+            rot[k, 0, i] * (px - centers[k, 0])
+            + rot[k, 1, i] * (py - centers[k, 1])
+            + rot[k, 2, i] * (pz - centers[k, 2])
+        )
     r = np.sqrt((y[0] / radii[k, 0]) ** 2 + (y[1] / radii[k, 1]) ** 2 + (y[2] / radii[k, 2]) ** 2)
     amax = max(radii[k, 0], max(radii[k, 1], radii[k, 2]))
     # and the ball of radius a_max: |p - c| - a_max (tighter far from a flat one)
@@ -238,11 +250,15 @@ def cell_candidates(cell_centers, half_diag, center_phi, centers, rot, radii, ke
     for c in range(cell_centers.shape[0]):
         lim = center_phi[c] + 2.0 * half_diag
         for k in range(centers.shape[0]):
-            keep[c, k] = _bound(cell_centers[c, 0], cell_centers[c, 1], cell_centers[c, 2], k, centers, rot, radii, y) <= lim
+            keep[c, k] = (
+                _bound(cell_centers[c, 0], cell_centers[c, 1], cell_centers[c, 2], k, centers, rot, radii, y) <= lim
+            )
 
 
 @njit(cache=True)
-def grid_phi_grad(points, origin, cell, shape, cell_start, cell_items, cell_far, centers, rot, radii, phi, grad, which, outside):
+def grid_phi_grad(
+    points, origin, cell, shape, cell_start, cell_items, cell_far, centers, rot, radii, phi, grad, which, outside
+):
     """union_phi_grad over each point's cell's candidate leaves (cell_items
     [cell_start[c]:cell_start[c+1]]); a point outside the grid, or in a cell
     far from the body (cell_far[c]), is only marked in

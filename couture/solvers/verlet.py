@@ -161,7 +161,7 @@ class VerletSolver:
         t_start = time.perf_counter()
         sm = self.spring_model(model)
         x = pinned_positions(model, x0)
-        stats = dict(
+        stats: dict[str, Any] = dict(
             assembly_s=0.0, linear_solve_s=0.0, projection_s=0.0, steps=0, velocity_resets=0, own_residual=float("nan")
         )
         if not finite(x):
@@ -181,9 +181,7 @@ class VerletSolver:
         stats["dt"] = dt
         dt2 = dt * dt
         body = self.contact_body(model)
-        stats["contact"] = (
-            "none" if body is None else "proxy" if body is not getattr(model, "body", None) else "sdf"
-        )
+        stats["contact"] = "none" if body is None else "proxy" if body is not getattr(model, "body", None) else "sdf"
         stats["contact_s"] = 0.0
         offset = float(getattr(model, "contact_offset", 0.0))
         gnorm = float(np.linalg.norm(sm.f_gravity)) or 1.0
