@@ -199,6 +199,35 @@ def test_phi_grad_matches_finite_differences(mannequin):
     assert np.array_equal(b_which, which) and np.abs(b_phi - phi).max() < 1e-12
 
 
+def test_blended_proxy_is_smooth_and_close(mannequin):
+    V, F, _, proxy = mannequin
+    blend = 0.005
+    smooth = EllipsoidProxyBody(proxy.nodes, blend=blend)  # what Verlet's contact='proxy' uses
+    S, Sn = sample_triangles(V, F, per_triangle=0.02, seed=4)
+    rng = np.random.default_rng(4)
+    P = S + Sn * rng.uniform(-0.005, 0.04, (len(S), 1))
+    exact = proxy.phi_grad(P)[0]
+    phi, grad = smooth.phi_grad(P)
+    # folding one more ellipsoid lowers it only while it is within blend of the
+    # running value: never by blend or more in all
+    assert (phi <= exact + 1e-12).all() and (phi > exact - blend).all()
+    assert (phi < exact - 1e-4).sum() > 20  # the blend did something
+    h = 1e-6
+    fd = np.empty_like(grad)
+    for d in range(3):
+        e = np.zeros(3)
+        e[d] = h
+        fd[:, d] = (smooth.phi_grad(P + e)[0] - smooth.phi_grad(P - e)[0]) / (2 * h)
+    gn = np.linalg.norm(grad, axis=1)  # < 1 in a crease (the normals of two ellipsoids averaged)
+    assert gn.min() > 0.1 and np.median(gn) > 0.9
+    # C¹ across the creases: outside the union the FD gradient matches everywhere
+    # (inside, one ellipsoid's own medial surface still has a kink)
+    out = exact > 1e-4
+    assert out.sum() > 100 and np.abs(fd[out] - grad[out]).max() < 1e-4
+    with pytest.raises(ValueError, match="blend"):
+        EllipsoidProxyBody(proxy.nodes, blend=-1.0)
+
+
 def test_points_inside_the_body_are_inside_the_proxy(mannequin):
     V, F, dist, proxy = mannequin
     rng = np.random.default_rng(11)
@@ -258,5 +287,6 @@ def test_verlet_contact_option():
     m.scene = type("S", (), {"body": m.body})()
     assert get_solver("verlet", contact="proxy").contact_body(m) is m.body  # not the mannequin: as it is
     m.scene.body = "mannequin"
-    assert isinstance(get_solver("verlet", contact="proxy").contact_body(m), EllipsoidProxyBody)
+    body = get_solver("verlet", contact="proxy").contact_body(m)
+    assert isinstance(body, EllipsoidProxyBody) and body.blend == 0.005  # creases rounded for contact
     assert get_solver("verlet").contact_body(m) is m.body

@@ -470,9 +470,15 @@ class EllipsoidProxyBody:
     ellipsoid wins. No ``phi_hess``: models fall back to their Gauss-Newton
     contact block."""
 
-    def __init__(self, nodes: list[ProxyNode], grid_cell: float | None = 0.03):
+    def __init__(self, nodes: list[ProxyNode], grid_cell: float | None = 0.03, blend: float = 0.0):
         """grid_cell [m]: cell of the candidate grid that answers phi_grad near
-        the body (None: the sphere tree alone)."""
+        the body (None: the sphere tree alone); blend [m]: 0 for the exact
+        min over the leaves, else a smooth (C¹) min that rounds the creases
+        where leaves meet (proxy_kernels._merge), e.g. for contact; there the
+        gradient is a blend of two normals, shorter than 1."""
+        if not (np.isfinite(blend) and blend >= 0):
+            raise ValueError(f"blend must be a length >= 0 [m], got {blend!r}")
+        self.blend = float(blend)
         if not nodes:
             raise ValueError("EllipsoidProxyBody needs at least one node")
         self.nodes = nodes
@@ -515,9 +521,9 @@ class EllipsoidProxyBody:
         shape = np.ceil((hi - lo) / cell).astype(np.int64)
         axes = [lo[d] + cell * (np.arange(shape[d]) + 0.5) for d in range(3)]
         C = np.ascontiguousarray(np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3))
-        phi_c = self._tree(C)[0]
+        phi_c = self._tree(C, 0.0)[0]
         keep = np.empty((len(C), self.n_ellipsoids), dtype=np.bool_)
-        PK.cell_candidates(C, 0.5 * np.sqrt(3.0) * cell, phi_c, self.centers, self.rot, self.radii, keep)
+        PK.cell_candidates(C, 0.5 * np.sqrt(3.0) * cell, phi_c, self.centers, self.rot, self.radii, self.blend, keep)
         far = phi_c > band  # the tree answers there: one leaf or two are near
         keep[far] = False
         cnt = keep.sum(axis=1)
@@ -526,13 +532,14 @@ class EllipsoidProxyBody:
         self.cell_far = far
         self.cell_items = np.ascontiguousarray(np.nonzero(keep)[1], dtype=np.int64)
 
-    def _tree(self, p):
+    def _tree(self, p, blend=None):
+        blend = self.blend if blend is None else blend
         phi = np.empty(len(p))
         grad = np.empty((len(p), 3))
         which = np.empty(len(p), np.int64)
         PK.tree_phi_grad(
             p, self.roots, self.child0, self.child1, self.leaf_of, self.sph_c, self.sph_r,
-            self.centers, self.rot, self.radii, phi, grad, which,
+            self.centers, self.rot, self.radii, blend, phi, grad, which,
         )  # fmt: skip
         return phi, grad, which
 
@@ -553,14 +560,14 @@ class EllipsoidProxyBody:
         out = np.empty(len(p), np.bool_)
         PK.grid_phi_grad(
             p, self.grid_origin, self.grid_cell, self.grid_shape, self.cell_start, self.cell_items, self.cell_far,
-            self.centers, self.rot, self.radii, phi, grad, which, out,
+            self.centers, self.rot, self.radii, self.blend, phi, grad, which, out,
         )  # fmt: skip
         if out.any():
             phi[out], grad[out], which[out] = self._tree(np.ascontiguousarray(p[out]))
         return phi, grad, which
 
     def phi_grad_brute(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The same as phi_grad_which, every leaf tried (no tree): a check."""
+        """phi_grad_which with blend 0, every leaf tried (no tree, no grid): a check."""
         p = np.ascontiguousarray(points, dtype=np.float64)
         phi = np.empty(len(p))
         grad = np.empty((len(p), 3))
@@ -745,9 +752,12 @@ _LOADED: dict[str, EllipsoidProxyBody] = {}
 """proxies loaded in this process, by cache file (a solver asks once per solve)"""
 
 
-def load_mannequin_proxy(thresholds: dict[str, float] | None = None, verbose: bool = True) -> EllipsoidProxyBody:
+def load_mannequin_proxy(
+    thresholds: dict[str, float] | None = None, verbose: bool = True, blend: float = 0.0
+) -> EllipsoidProxyBody:
     """The mannequin's ellipsoid proxy, from the cache (beside the mannequin
-    SDF: ``$COUTURE_CACHE`` or ``~/.cache/couture``) or built and cached now."""
+    SDF: ``$COUTURE_CACHE`` or ``~/.cache/couture``) or built and cached now;
+    blend [m]: its smooth min (EllipsoidProxyBody)."""
     from couture.cloth.body import MANNEQUIN_OBJ, cache_dir
 
     thr = dict(DEFAULT_THRESHOLDS if thresholds is None else thresholds)
@@ -760,14 +770,16 @@ def load_mannequin_proxy(thresholds: dict[str, float] | None = None, verbose: bo
     )
     digest = hashlib.sha1(MANNEQUIN_OBJ.read_bytes() + key.encode()).hexdigest()[:12]
     path = cache_dir() / f"mannequin_proxy_{digest}_v{PROXY_VERSION}.npz"
-    if str(path) in _LOADED:
-        return _LOADED[str(path)]
+    name = f"{path}|{float(blend)!r}"
+    if name in _LOADED:
+        return _LOADED[name]
     if path.exists():
-        body = _LOADED[str(path)] = EllipsoidProxyBody(load_nodes(path))
-        return body
-    body = _LOADED[str(path)] = build_mannequin_proxy(thr, verbose=verbose)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".tmp{os.getpid()}.npz")
-    save_nodes(tmp, body.nodes)
-    os.replace(tmp, path)
+        nodes = load_nodes(path)
+    else:
+        nodes = build_mannequin_proxy(thr, verbose=verbose).nodes
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".tmp{os.getpid()}.npz")
+        save_nodes(tmp, nodes)
+        os.replace(tmp, path)
+    body = _LOADED[name] = EllipsoidProxyBody(nodes, blend=blend)
     return body

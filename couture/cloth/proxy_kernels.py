@@ -68,6 +68,39 @@ def ellipsoid_closest(y, a, x):
     return d if f >= 1.0 else -d
 
 
+@njit(cache=True, inline="always")
+def _merge(best, g0, g1, g2, d, x, k, rot, radii, blend):
+    """Fold ellipsoid k (signed distance d, closest point x) into the running
+    minimum (best, its gradient g): the exact min for blend = 0, else the
+    polynomial smooth min min(a, b) - blend h²/4, h = max(blend - |a - b|, 0) /
+    blend (C¹: it rounds the concave creases where ellipsoids meet, outward:
+    by blend/4 where two meet, less than blend in all, since a fold lowers the
+    value only while the new distance is within blend of it). Returns (best, g0, g1, g2, whether k is now the
+    nearest)."""
+    if d >= best + blend:
+        return best, g0, g1, g2, False
+    # outward normal at x: ∝ x / a², back to world
+    n0 = x[0] / (radii[k, 0] ** 2)
+    n1 = x[1] / (radii[k, 1] ** 2)
+    n2 = x[2] / (radii[k, 2] ** 2)
+    nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    n0 /= nn
+    n1 /= nn
+    n2 /= nn
+    w0 = rot[k, 0, 0] * n0 + rot[k, 0, 1] * n1 + rot[k, 0, 2] * n2
+    w1 = rot[k, 1, 0] * n0 + rot[k, 1, 1] * n1 + rot[k, 1, 2] * n2
+    w2 = rot[k, 2, 0] * n0 + rot[k, 2, 1] * n1 + rot[k, 2, 2] * n2
+    if best - d >= blend:  # k wins outright (always, for blend = 0 and d < best)
+        return d, w0, w1, w2, True
+    h = (blend - abs(best - d)) / blend
+    if d < best:
+        a_new, a_old = 1.0 - 0.5 * h, 0.5 * h
+    else:
+        a_new, a_old = 0.5 * h, 1.0 - 0.5 * h
+    s = min(best, d) - 0.25 * blend * h * h
+    return s, a_old * g0 + a_new * w0, a_old * g1 + a_new * w1, a_old * g2 + a_new * w2, d < best
+
+
 @njit(cache=True)
 def union_phi_grad(points, centers, rot, radii, rmax, phi, grad, which):
     """Signed distance to the union of K ellipsoids, min_k of each one's exact
@@ -131,7 +164,7 @@ def union_phi_grad(points, centers, rot, radii, rmax, phi, grad, which):
 
 
 @njit(cache=True)
-def tree_phi_grad(points, roots, child0, child1, leaf_of, sph_c, sph_r, centers, rot, radii, phi, grad, which):
+def tree_phi_grad(points, roots, child0, child1, leaf_of, sph_c, sph_r, centers, rot, radii, blend, phi, grad, which):
     """union_phi_grad through a sphere tree (branch and bound): node m's ball
     (sph_c[m], sph_r[m]) holds every leaf ellipsoid below it, so
     |p - sph_c| - sph_r bounds their signed distances from below and a subtree
@@ -139,7 +172,7 @@ def tree_phi_grad(points, roots, child0, child1, leaf_of, sph_c, sph_r, centers,
 
     roots (r,) node indices; child0/child1 (N,) children (-1 at a leaf);
     leaf_of (N,) the leaf's index into centers/rot/radii (-1 inside);
-    outputs as union_phi_grad."""
+    blend [m]: see _merge (0: the exact min); outputs as union_phi_grad."""
     N = child0.shape[0]
     stack = np.empty(N + roots.shape[0] + 1, np.int64)
     y = np.empty(3)
@@ -160,7 +193,7 @@ def tree_phi_grad(points, roots, child0, child1, leaf_of, sph_c, sph_r, centers,
             dx = points[n, 0] - sph_c[m, 0]
             dy = points[n, 1] - sph_c[m, 1]
             dz = points[n, 2] - sph_c[m, 2]
-            if np.sqrt(dx * dx + dy * dy + dz * dz) - sph_r[m] >= best:
+            if np.sqrt(dx * dx + dy * dy + dz * dz) - sph_r[m] >= best + blend:
                 continue
             k = leaf_of[m]
             if k < 0:
@@ -198,22 +231,12 @@ def tree_phi_grad(points, roots, child0, child1, leaf_of, sph_c, sph_r, centers,
                 bound = (r - 1.0) * min(radii[k, 0], min(radii[k, 1], radii[k, 2]))
             else:
                 bound = (r - 1.0) * max(radii[k, 0], max(radii[k, 1], radii[k, 2]))
-            if bound >= best:
+            if bound >= best + blend:
                 continue
             d = ellipsoid_closest(y, radii[k], x)
-            if d < best:
-                best = d
+            best, g0, g1, g2, took = _merge(best, g0, g1, g2, d, x, k, rot, radii, blend)
+            if took:
                 bk = k
-                n0 = x[0] / (radii[k, 0] ** 2)
-                n1 = x[1] / (radii[k, 1] ** 2)
-                n2 = x[2] / (radii[k, 2] ** 2)
-                nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-                n0 /= nn
-                n1 /= nn
-                n2 /= nn
-                g0 = rot[k, 0, 0] * n0 + rot[k, 0, 1] * n1 + rot[k, 0, 2] * n2
-                g1 = rot[k, 1, 0] * n0 + rot[k, 1, 1] * n1 + rot[k, 1, 2] * n2
-                g2 = rot[k, 2, 0] * n0 + rot[k, 2, 1] * n1 + rot[k, 2, 2] * n2
         phi[n] = best
         grad[n, 0] = g0
         grad[n, 1] = g1
@@ -241,14 +264,15 @@ def _bound(px, py, pz, k, centers, rot, radii, y):
 
 
 @njit(cache=True)
-def cell_candidates(cell_centers, half_diag, center_phi, centers, rot, radii, keep):
+def cell_candidates(cell_centers, half_diag, center_phi, centers, rot, radii, blend, keep):
     """keep (n_cells, K) bool: leaf k can be the nearest (lowest signed distance)
     somewhere in the cell: bound_k(c) - h <= min_j phi_j(c) + h (phi is
     1-Lipschitz, so within the cell phi_k >= bound_k(c) - h and the minimum is
-    <= its value at the centre + h)."""
+    <= its value at the centre + h); + blend, the reach of the smooth min.
+    center_phi: the exact min at the centres."""
     y = np.empty(3)
     for c in range(cell_centers.shape[0]):
-        lim = center_phi[c] + 2.0 * half_diag
+        lim = center_phi[c] + 2.0 * half_diag + blend
         for k in range(centers.shape[0]):
             keep[c, k] = (
                 _bound(cell_centers[c, 0], cell_centers[c, 1], cell_centers[c, 2], k, centers, rot, radii, y) <= lim
@@ -257,7 +281,7 @@ def cell_candidates(cell_centers, half_diag, center_phi, centers, rot, radii, ke
 
 @njit(cache=True)
 def grid_phi_grad(
-    points, origin, cell, shape, cell_start, cell_items, cell_far, centers, rot, radii, phi, grad, which, outside
+    points, origin, cell, shape, cell_start, cell_items, cell_far, centers, rot, radii, blend, phi, grad, which, outside
 ):
     """union_phi_grad over each point's cell's candidate leaves (cell_items
     [cell_start[c]:cell_start[c+1]]); a point outside the grid, or in a cell
@@ -284,22 +308,12 @@ def grid_phi_grad(
         g2 = 0.0
         for j in range(cell_start[c], cell_start[c + 1]):
             k = cell_items[j]
-            if _bound(points[n, 0], points[n, 1], points[n, 2], k, centers, rot, radii, y) >= best:
+            if _bound(points[n, 0], points[n, 1], points[n, 2], k, centers, rot, radii, y) >= best + blend:
                 continue
             d = ellipsoid_closest(y, radii[k], x)
-            if d < best:
-                best = d
+            best, g0, g1, g2, took = _merge(best, g0, g1, g2, d, x, k, rot, radii, blend)
+            if took:
                 bk = k
-                n0 = x[0] / (radii[k, 0] ** 2)
-                n1 = x[1] / (radii[k, 1] ** 2)
-                n2 = x[2] / (radii[k, 2] ** 2)
-                nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-                n0 /= nn
-                n1 /= nn
-                n2 /= nn
-                g0 = rot[k, 0, 0] * n0 + rot[k, 0, 1] * n1 + rot[k, 0, 2] * n2
-                g1 = rot[k, 1, 0] * n0 + rot[k, 1, 1] * n1 + rot[k, 1, 2] * n2
-                g2 = rot[k, 2, 0] * n0 + rot[k, 2, 1] * n1 + rot[k, 2, 2] * n2
         phi[n] = best
         grad[n, 0] = g0
         grad[n, 1] = g1

@@ -112,6 +112,7 @@ class VerletSolver:
         seam_iters: int = 4,
         check_every: int = 5,
         contact: str = "sdf",
+        proxy_blend: float = 0.005,
     ):
         """keep: velocity retained per step (1 - viscous damping); dt [s]: time
         step (None: 0.5 of the bending springs' explicit bound, at most 20 ms);
@@ -119,10 +120,14 @@ class VerletSolver:
         between convergence checks; contact: what the cloth is projected out of,
         'sdf' (the model's body) or 'proxy' (Meng's ellipsoid hierarchy of the
         mannequin, couture.cloth.proxy; a body that is not the mannequin is used
-        as it is)."""
+        as it is); proxy_blend [m]: the proxy's smooth min, which rounds the
+        creases where its ellipsoids meet (with 0 the drape does not settle:
+        vertices in a crease are pushed along one ellipsoid's normal, then the
+        other's)."""
         if contact not in ("sdf", "proxy"):
             raise ValueError(f"unknown contact {contact!r}; use 'sdf' or 'proxy'")
         self.contact = contact
+        self.proxy_blend = proxy_blend
         self.keep = keep
         self.dt = dt
         self.stretch_iters = stretch_iters
@@ -140,7 +145,7 @@ class VerletSolver:
         if getattr(scene, "body", None) == "mannequin":
             from couture.cloth.proxy import load_mannequin_proxy
 
-            return load_mannequin_proxy()
+            return load_mannequin_proxy(blend=self.proxy_blend)
         return body
 
     def spring_model(self, model) -> SpringModel:
