@@ -522,15 +522,23 @@ class EllipsoidProxyBody:
         axes = [lo[d] + cell * (np.arange(shape[d]) + 0.5) for d in range(3)]
         C = np.ascontiguousarray(np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3))
         phi_c = self._tree(C, 0.0)[0]
-        keep = np.empty((len(C), self.n_ellipsoids), dtype=np.bool_)
-        PK.cell_candidates(C, 0.5 * np.sqrt(3.0) * cell, phi_c, self.centers, self.rot, self.radii, self.blend, keep)
         far = phi_c > band  # the tree answers there: one leaf or two are near
-        keep[far] = False
-        cnt = keep.sum(axis=1)
+        near = np.nonzero(~far)[0]
+        cnt = np.zeros(len(C), np.int64)
+        items = []
+        for s in range(0, len(near), 4096):  # (cells, leaves) masks a chunk at a time
+            idx = near[s : s + 4096]
+            keep = np.empty((len(idx), self.n_ellipsoids), dtype=np.bool_)
+            PK.cell_candidates(
+                np.ascontiguousarray(C[idx]), 0.5 * np.sqrt(3.0) * cell, phi_c[idx],
+                self.centers, self.rot, self.radii, self.blend, keep,
+            )  # fmt: skip
+            cnt[idx] = keep.sum(axis=1)
+            items.append(np.nonzero(keep)[1])
         self.grid_origin, self.grid_cell, self.grid_shape = lo, float(cell), shape
         self.cell_start = np.r_[0, np.cumsum(cnt)].astype(np.int64)
         self.cell_far = far
-        self.cell_items = np.ascontiguousarray(np.nonzero(keep)[1], dtype=np.int64)
+        self.cell_items = np.ascontiguousarray(np.concatenate(items) if items else np.zeros(0), dtype=np.int64)
 
     def _tree(self, p, blend=None):
         blend = self.blend if blend is None else blend
