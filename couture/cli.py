@@ -1,10 +1,11 @@
-"""``couture`` command line: up, record, replay, compare, recover, export-foxglove, drape, bench."""
+"""``couture`` command line: up, record, replay, compare, recover, export-foxglove, drape, export, bench."""
 
 from __future__ import annotations
 
 import argparse
 import enum
 import importlib
+import json
 import logging
 import math
 import pkgutil
@@ -154,6 +155,88 @@ def _parser() -> argparse.ArgumentParser:
     )
     add_bus_args(dp)
 
+    ex = sub.add_parser(
+        "export",
+        help="pattern pieces to cut: DXF (AAMA/ASTM), SVG, PDF, PDF tiled on A4/letter pages",
+        description="Draft a pattern file and write its pieces to cut: the cut line (sew line plus seam\n"
+        "allowance, deeper on hems), the sew line, notches where seams meet, drill holes at dart\n"
+        "points, the grain line and labels (piece, size, how many to cut), at true scale.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ex.add_argument("pattern", help="pattern JSON (couture/design/v1)")
+    ex.add_argument(
+        "--format",
+        nargs="+",
+        default=["dxf", "svg", "pdf", "pdf-tiled"],
+        choices=["dxf", "svg", "pdf", "pdf-tiled"],
+        help="what to write (default: all): NAME.dxf, NAME.svg, NAME.pdf (one page), NAME-PAPER.pdf (tiled)",
+    )
+    ex.add_argument("--out", default=".", metavar="DIR", help="output directory (made if missing; default .)")
+    ex.add_argument("--paper", default="a4", choices=["a4", "letter"], help="pages of pdf-tiled (default a4)")
+    ex.add_argument("--seam-allowance", type=float, default=0.01, metavar="M", help="[m] default 0.01")
+    ex.add_argument("--hem-allowance", type=float, default=0.03, metavar="M", help="[m] on hems, default 0.03")
+    ex.add_argument(
+        "--allowance",
+        action="append",
+        default=[],
+        metavar="SEGMENT=M",
+        help="[m] width on one seam, repeatable: 'neck=0.006' (that segment on every panel) or "
+        "'front:side_right=0.015'; the seam's other side gets it too",
+    )
+    ex.add_argument("--hem-segments", nargs="+", default=["hem", "cuff"], metavar="NAME", help="segments that are hems")
+    ex.add_argument(
+        "--notch-spacing", type=float, default=0.25, metavar="M", help="[m] most seam between notches (0.25)"
+    )
+    ex.add_argument("--no-end-notches", action="store_true", help="no notches at seam ends")
+    ex.add_argument(
+        "--every-panel",
+        action="store_true",
+        help="one piece per panel (default: congruent panels, mirrored or not, are one piece with its cut count)",
+    )
+    ex.add_argument("--units", default="mm", choices=["mm", "in"], help="DXF units (default mm)")
+    ex.add_argument("--sheet-width", type=float, default=1.2, metavar="M", help="[m] rows of pieces on the sheet (1.2)")
+    ex.add_argument("--name", default=None, help="design name on the labels and files (default: the file's stem)")
+    ex.add_argument("--size", default=None, help="size on the labels (default: the sloper's girths, e.g. B88 W70)")
+    ad = sub.add_parser(
+        "adjust",
+        help="direct 3D edit of a draped design (hem, waist) and its physics-adjusted pattern (Bartle 2016)",
+        description="Drape a design on solver nodes, edit the drape in 3D (shorten the hem, loosen or tighten\n"
+        "the waist) into a target garment, and adjust the pattern until its re-simulated drape matches\n"
+        "the target. Every solve is a `solve` request over the bus: without --connect the solver nodes\n"
+        "(--solver, repeatable; two names fan the solves out over two processes) are started here.\n"
+        "Writes pattern.dxf/.svg/.pdf (adjusted), flattened.svg, panels.json, drape_*.obj, adjust.json\n"
+        "and adjust.png into --out.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ad.add_argument("pattern", help="pattern JSON (couture/design/v1)")
+    edit = ad.add_mutually_exclusive_group(required=True)
+    edit.add_argument("--hem", type=float, metavar="DH", help="[m] hem change; negative shortens (e.g. -0.15)")
+    edit.add_argument("--waist", type=float, metavar="DG", help="[m] waist girth change; positive loosens (e.g. +0.04)")
+    ad.add_argument("--out", required=True, help="output directory")
+    ad.add_argument(
+        "--solver",
+        action="append",
+        default=None,
+        choices=["kinetic", "newton", "verlet"],
+        help="solver node(s) to start and fan the solves out to (repeatable; default newton); with --connect: "
+        "which live solver-<name> nodes to use (default every live one)",
+    )
+    ad.add_argument(
+        "--vertices", type=int, default=None, help="coarse mesh size (default the design's resolution.coarse_vertices)"
+    )
+    ad.add_argument("--iters", type=int, default=5, help="at most this many fixed-point updates")
+    ad.add_argument("--stop-stretch", type=float, default=0.995, help="stop once the mean stretch (eq. 8) reaches this")
+    ad.add_argument("--no-equalize", action="store_true", help="leave the seam lengths as the embedding makes them")
+    ad.add_argument(
+        "--gradient-steps",
+        type=int,
+        default=0,
+        metavar="N",
+        help="after the fixed point, up to N Gauss-Newton steps with couture's design sensitivity (each "
+        "re-simulated on the solver nodes, kept only if it lowers the Hausdorff distance); default 0",
+    )
+    add_bus_args(ad)
+
     from couture.bus.secure import DEFAULT_HOSTS, DEFAULT_WRITERS, STANDARD_NODES
 
     ct = sub.add_parser(
@@ -201,12 +284,62 @@ def _parser() -> argparse.ArgumentParser:
     gp = sub.add_parser("golden", help="golden recordings: make or check recordings/<case>.mcap", add_help=False)
     gp.add_argument("rest", nargs=argparse.REMAINDER)
 
+    bo = sub.add_parser(
+        "bodies", help="bodies a design can name: list them (requested vs measured), or make the graded sizes"
+    )
+    bsub = bo.add_subparsers(dest="bodies_cmd", required=True)
+    bl = bsub.add_parser("list", help="print every body with its requested and measured ISO 8559-1 measurements")
+    bl.add_argument("--json", action="store_true", help="print the table as JSON")
+    bm = bsub.add_parser(
+        "make", help="fit the graded sizes with Anny and write couture/assets/bodies (needs couture[bodies])"
+    )
+    bm.add_argument("names", nargs="*", help="sizes to make (default: every size of the table)")
+    bm.add_argument("--out", default=None, help="directory (default: couture/assets/bodies)")
+    bm.add_argument(
+        "--measure",
+        nargs=5,
+        type=float,
+        metavar=("HEIGHT", "BUST", "WAIST", "HIP", "INSEAM"),
+        default=None,
+        help="a body of your own measurements [m] (stature, bust, waist and hip girths, inside leg), "
+        "named by the one NAME given",
+    )
+
     bp = sub.add_parser(
         "bench", help="benchmarks: NAME writes NAME.json (and its plots) to --out DIR (default bench/results/)"
     )
     bp.add_argument("which", choices=BENCHES)
     bp.add_argument("args", nargs=argparse.REMAINDER, help="passed to the benchmark, e.g. --out DIR")
     return p
+
+
+def bodies_command(args: argparse.Namespace) -> int:
+    import couture.bodies as bodies
+    from couture.bodies.measure import MEASURES
+
+    if args.bodies_cmd == "make":
+        from couture.bodies.make import make_graded
+
+        table = None
+        if args.measure is not None:
+            if len(args.names) != 1:
+                raise ValueError("--measure makes one body: give exactly one NAME")
+            table = {args.names[0]: dict(zip(MEASURES, args.measure, strict=True))}
+        make_graded(Path(args.out) if args.out else bodies.BODIES_DIR, args.names or None, table=table)
+        bodies.index.cache_clear()
+    rows = bodies.table()
+    if getattr(args, "json", False):
+        print(json.dumps(rows, indent=2))
+        return 0
+    print("requested / measured [cm] (ISO 8559-1: stature, bust, waist, hip girths, inside leg)")
+    print(f"{'body':8s}" + "".join(f"{k:>22s}" for k in MEASURES))
+    for r in rows:
+        cells = []
+        for k in MEASURES:
+            m = 100 * r["measured"][k]
+            cells.append(f"{m:.1f}" if r["requested"] is None else f"{100 * r['requested'][k]:.1f} / {m:.1f}")
+        print(f"{r['name']:8s}" + "".join(f"{c:>22s}" for c in cells))
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -325,6 +458,13 @@ def _dispatch(args: argparse.Namespace) -> int:
             verbose=args.verbose or args.drape_verbose,
             name=args.name,
         )
+
+    if args.cmd == "export":
+        return export_pattern(args)
+    if args.cmd == "adjust":
+        return adjust(args)
+    if args.cmd == "bodies":
+        return bodies_command(args)
 
     if args.cmd == "bench":
         try:
@@ -590,12 +730,15 @@ def drape(
         write_obj(out_dir / "drape.obj", d.x.numpy(), mesh.tris.numpy(), mesh.X.numpy())
         shutil.copyfile(pattern, out_dir / "pattern.json")
         from couture.pattern import draft
+        from couture.pattern.cutting import CutSpec
         from couture.pattern.io import export_dxf, export_pdf, export_svg
 
         drafted = draft(design)
-        export_dxf(drafted, out_dir / "pattern.dxf")
-        export_svg(drafted, out_dir / "pattern.svg")
-        export_pdf(drafted, out_dir / "pattern.pdf")
+        # pieces to cut: 1 cm seam allowances, 3 cm hems, notches, grain, labels
+        cut = CutSpec(design_name=Path(pattern).stem, sheet_width=1.2)
+        export_dxf(drafted, out_dir / "pattern.dxf", spec=cut)
+        export_svg(drafted, out_dir / "pattern.svg", spec=cut)
+        export_pdf(drafted, out_dir / "pattern.pdf", spec=cut)
         (out_dir / "drape.json").write_text(  # standard JSON: a non-finite residual is null
             dumps(
                 {
@@ -623,6 +766,125 @@ def drape(
         )
         return DrapeExit.NOT_CONVERGED
     return DrapeExit.CONVERGED
+
+
+def export_pattern(args: argparse.Namespace) -> int:
+    """``couture export``: the pieces of a pattern file as DXF, SVG, PDF, tiled PDF."""
+    from couture.pattern import draft_with_context
+    from couture.pattern.cutting import CutSpec, cut_pieces
+    from couture.pattern.io import export_dxf, export_pdf, export_pdf_tiled, export_svg, load_design
+
+    logging.getLogger("ezdxf").setLevel(logging.WARNING)
+    design = load_design(args.pattern)
+    drafted, ctx = draft_with_context(design)
+    widths = {}
+    for item in args.allowance:
+        key, eq, value = item.partition("=")
+        try:
+            widths[key] = float(value)
+        except ValueError:
+            raise ValueError(f"--allowance {item!r} is not SEGMENT=WIDTH (a width in metres)") from None
+        if not eq or not key:
+            raise ValueError(f"--allowance {item!r} is not SEGMENT=WIDTH (a width in metres)")
+    name = args.name or Path(args.pattern).stem
+    size = args.size
+    if size is None:
+        girths = [
+            (k[0].upper(), ctx.params[f"{k}_girth"]) for k in ("bust", "waist", "hip") if f"{k}_girth" in ctx.params
+        ]
+        size = " ".join(f"{c}{v * 100:.0f}" for c, v in girths)
+    spec = CutSpec(
+        seam_allowance=args.seam_allowance,
+        hem_allowance=args.hem_allowance,
+        hem_segments=tuple(args.hem_segments),
+        widths=widths,
+        notch_spacing=args.notch_spacing,
+        end_notches=not args.no_end_notches,
+        group=not args.every_panel,
+        design_name=name,
+        size=size,
+        sheet_width=args.sheet_width,
+    )
+    pieces = cut_pieces(drafted, spec)  # checks the spec before any file is written
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = "".join(c if c.isalnum() or c in "_-." else "_" for c in name)
+    written = []
+    for fmt in dict.fromkeys(args.format):
+        if fmt == "dxf":
+            export_dxf(drafted, out / f"{stem}.dxf", units=args.units, spec=spec)
+            written.append(f"{stem}.dxf")
+        elif fmt == "svg":
+            export_svg(drafted, out / f"{stem}.svg", spec=spec)
+            written.append(f"{stem}.svg")
+        elif fmt == "pdf":
+            export_pdf(drafted, out / f"{stem}.pdf", spec=spec)
+            written.append(f"{stem}.pdf")
+        else:
+            cols, rows = export_pdf_tiled(drafted, out / f"{stem}-{args.paper}.pdf", args.paper, spec=spec)
+            written.append(f"{stem}-{args.paper}.pdf ({cols} x {rows} = {cols * rows} pages)")
+    print(f"{args.pattern}: {len(pieces)} pieces to cut ({sum(p.quantity for p in pieces)} with copies)")
+    for p in pieces:
+        print(f"  {p.name}: {p.labels[-1]}, {len(p.notches)} notches, {len(p.drills)} drill holes")
+    print(f"wrote into {out}: {', '.join(written)}")
+def adjust(args: argparse.Namespace) -> int:
+    """``couture adjust``: see its --help."""
+    from couture.adjust.pipeline import plot_case, write_outputs
+    from couture.bench.adjust import run_on_bus, solver_session
+    from couture.bus import bus_config_from_args
+    from couture.client import load_design
+
+    design = load_design(args.pattern)
+    edit, amount = ("hem", args.hem) if args.hem is not None else ("waist", args.waist)
+    if not math.isfinite(amount) or amount == 0 or (edit == "hem" and amount > 0):
+        raise ValueError(
+            f"--{edit} {amount!r}: "
+            + ("only shortening (negative, e.g. -0.15) is supported" if edit == "hem" else "a nonzero girth change [m]")
+        )
+    bus = bus_config_from_args(args)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    solvers = args.solver or ([] if bus.connect else ["newton"])
+    if not args.verbose:
+        logging.getLogger().setLevel(logging.WARNING)  # ezdxf and the supervisor log at INFO
+    with solver_session(solvers, bus if bus.connect else None, log_file=str(out / "nodes.log")) as (client, names):
+        print(f"[adjust] solves go to {', '.join(names)}", file=sys.stderr, flush=True)
+        case, counts = run_on_bus(
+            client,
+            names,
+            design,
+            edit,
+            amount,
+            vertices=args.vertices,
+            name=Path(args.pattern).stem,
+            max_iters=args.iters,
+            stop_stretch=args.stop_stretch,
+            equalize=not args.no_equalize,
+            gradient_steps=args.gradient_steps,
+            log=lambda s: print(s, file=sys.stderr, flush=True),
+        )
+    write_outputs(case, out)
+    plot_case(case, out / "adjust.png")
+    s = case.summary()
+    print(
+        f"[adjust] {s['design']}: flattening only: Hausdorff {s['flattening_only']['hausdorff_pct']:.2f} % of height, "
+        f"stretch {s['flattening_only']['stretch']:.4f}; adjusted (iteration {s['adjusted']['iteration']}): "
+        f"Hausdorff {s['adjusted']['hausdorff_pct']:.2f} %, stretch {s['adjusted']['stretch']:.4f}; "
+        + (
+            f"after {s['final']['gradient_steps_taken']} gradient steps: Hausdorff {s['final']['hausdorff_pct']:.2f} %, "
+            f"stretch {s['final']['stretch']:.4f}; "
+            if args.gradient_steps
+            else ""
+        )
+        + f"edit to pattern {s['timings_s']['edit_to_pattern']:.1f} s; solves per node {counts}; "
+        f"seams differ by at most {s['seams']['max_mismatch_mm']['adjusted']:.2f} mm",
+        file=sys.stderr,
+    )
+    print(
+        f"[adjust] wrote {out}/pattern.dxf, .svg, .pdf, panels.json, drape_*.obj, adjust.json, adjust.png",
+        file=sys.stderr,
+    )
+    return 0
 
 
 def write_obj(path: Path, x, tris, uv=None) -> None:

@@ -552,3 +552,72 @@ class Client:
             level=mm.level,
         )
         return self.bus.solve(req, timeout=timeout if timeout is not None else max_seconds + 10.0)
+
+
+class SolveFanout:
+    """Pattern adjustment's simulator on the bus (``couture.adjust``'s
+    ``Simulate``): each solve of ``mesh`` with new rest positions goes as a
+    ``solve`` request to the next of ``solvers`` (solver node names, round
+    robin), so several solver processes share an adjustment's solves; a
+    session's every solver is a black box behind the same request. ``solvers``
+    None: every live ``solver-*`` node of the session. ``counts`` holds how
+    many solves each node answered."""
+
+    def __init__(
+        self,
+        client: Client,
+        mesh: GarmentMesh,
+        design: Design,
+        solvers: list[str] | None = None,
+        *,
+        tol: float = 1e-4,
+        max_seconds: float = 60.0,
+    ) -> None:
+        if solvers is None:
+            solvers = sorted(n for n in client.live_nodes(timeout=1.0) if n.startswith("solver"))
+            if not solvers:
+                raise RuntimeError(f"no solver node is live on session {client.cfg.session}")
+        if not solvers:
+            raise ValueError("SolveFanout needs at least one solver node name")
+        self.client, self.mesh, self.design = client, mesh, design
+        self.solvers = list(solvers)
+        self.tol, self.max_seconds = tol, max_seconds
+        self.counts: dict[str, int] = {s: 0 for s in self.solvers}
+        self.ready_timeout = 20.0
+        """[s] how long a node that answers nothing at once (its queryable not declared yet) is asked again"""
+        self._next = 0
+        self._lock = threading.Lock()
+
+    def __call__(self, X: np.ndarray, x_warm: np.ndarray):
+        from couture.adjust.fixed_point import Simulated, with_rest
+
+        with self._lock:
+            name = self.solvers[self._next % len(self.solvers)]
+            self._next += 1
+        mesh = with_rest(self.mesh, X, x_warm)
+        deadline = time.monotonic() + self.ready_timeout
+        while True:
+            asked = time.monotonic()
+            try:
+                res = self.client.solve(
+                    mesh, x_warm, solver=name, tol=self.tol, max_seconds=self.max_seconds, design=self.design
+                )
+                break
+            except TimeoutError:
+                # a node's liveliness token comes up before its queryable: an
+                # empty answer at once means "not serving yet", not "too slow"
+                if time.monotonic() - asked > 1.0 or time.monotonic() > deadline:
+                    raise
+                time.sleep(0.2)
+        if res.error or res.x is None:
+            raise RuntimeError(f"solver {name} failed: {res.error or 'no positions in its result'}")
+        with self._lock:
+            self.counts[name] += 1
+        return Simulated(
+            x=np.asarray(res.x.numpy(), np.float64),
+            residual=float(res.residual),
+            converged=bool(res.converged),
+            solver=res.solver or name,
+            wall_time_s=float(res.wall_time_s),
+            diagnosis=res.diagnosis,
+        )

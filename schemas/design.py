@@ -66,7 +66,8 @@ class Body(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     """The mannequin."""
 
     name: str = "default"
-    """'default' is the embedded A-pose mannequin"""
+    """'default' is the embedded A-pose mannequin; 'XS', 'S', 'M', 'L', 'XL' the
+    graded bodies shipped with couture (``couture bodies list``)"""
 
 
 class SceneFlags(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):

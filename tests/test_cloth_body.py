@@ -80,7 +80,7 @@ def test_point_inside_offset_is_pushed_out():
     f = model.forces(x0, ["contact"])
     assert np.all(np.einsum("ij,ij->i", f[inside], grad[inside]) > 0)  # outward
     assert np.all(f[~inside] == 0)
-    x, hist = newton(model, x0, tol=1e-12, max_iters=50, use_exact=False)
+    x, hist = newton(model, x0, tol=1e-12, max_iters=200, use_exact=False)
     assert hist[-1] < 1e-12
     # the sheet is free (no gravity, no pins): any placement whose contact forces
     # vanish is an equilibrium, just outside the layer or grazing it, where the C²
@@ -177,6 +177,30 @@ def test_friction_slides_above_static_angle():
     fn = model.contact_normal_force(model.contact_offset - phi)
     ft = np.linalg.norm(model.forces(x, ["friction"]), axis=1)
     np.testing.assert_allclose(ft, 0.3 * fn, rtol=1e-9)
+
+
+def test_kinetic_friction_follows_the_normal_force():
+    """A slipping vertex's kinetic friction is mu_k times the normal force where the
+    vertex is now, along the direction it slipped in; off the body it is zero."""
+    model, x0, t = incline_scene(35.0)
+    model.update_friction(x0)
+    x1 = x0 - 0.01 * t  # 1 cm down the slope: every anchor pulls far beyond mu_s f_n
+    assert model.slip_friction(x1) == model.n and model.slipping.all()
+    before = model.slip_force.copy()
+    n = model.body.normal
+    x2 = x1.copy()
+    x2[::2] -= 0.002 * n  # deeper: pushed harder
+    x2[1::7] += 0.05 * n  # lifted off the body
+    assert model.rescale_slipping(x2) > 0
+    phi = (x2 - model.body.point) @ n  # the plane's signed distance, independently of the model
+    pen = model.contact_offset - phi
+    k, eps = model.contact_stiffness, model.contact_smoothing
+    fn = np.where(pen <= 0, 0.0, np.where(pen < eps, 0.5 * k * pen**2 / eps, k * (pen - 0.5 * eps)))
+    np.testing.assert_allclose(np.linalg.norm(model.slip_force, axis=1), 0.3 * fn, rtol=1e-12, atol=1e-15)
+    touching = fn > 0
+    unit = before[touching] / np.linalg.norm(before[touching], axis=1)[:, None]
+    np.testing.assert_allclose(model.slip_force[touching], unit * 0.3 * fn[touching][:, None], rtol=1e-12)
+    assert not model.slip_force[~touching].any()
 
 
 def test_friction_anchor_released_when_contact_ends():
@@ -290,3 +314,23 @@ def test_mannequin_sdf_sign_gradient_and_accuracy():
     sub = rng.choice(len(q), 60, replace=False)
     inside_w = winding_number(V, F, q[sub]) > 0.5
     assert np.array_equal(inside_w, exact[sub] < 0)
+
+
+def test_grid_sdf_is_exact_inside_and_near_the_body():
+    """The banded build against every node computed exactly: equal inside the
+    body and within BAND_NODES spacings outside it; elsewhere at least the band
+    (the contact, 1 cm deep, sees the same body). A sphere with a bar through
+    it (arms, legs: thin parts far from the rest)."""
+    import trimesh
+
+    outer = trimesh.creation.icosphere(subdivisions=3, radius=0.2)
+    body_mesh = trimesh.util.concatenate([outer, trimesh.creation.box(extents=(0.05, 0.6, 0.05))])
+    V, F = np.asarray(body_mesh.vertices), np.asarray(body_mesh.faces)
+    g = body_mod.build_grid_sdf(V, F, spacing=0.01, margin=0.12)
+    axes = [g.origin[d] + g.spacing * np.arange(g.values.shape[d]) for d in range(3)]
+    P = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    exact = body_mod.TriangleMeshDistance(V, F)(P).reshape(g.values.shape)
+    band = body_mod.BAND_NODES * g.spacing
+    keep = exact < band
+    assert np.array_equal(g.values[keep], exact[keep])
+    assert (g.values[~keep] >= band).all() and (~keep).sum() > 0.2 * keep.size

@@ -31,6 +31,7 @@ BUS_FACING = (
     "couture.bench.ui",
     "couture.bench.drape",
     "couture.bench.load",
+    "couture.bench.adjust",
 )
 """library modules (and packages) that may talk to Zenoh"""
 
@@ -44,6 +45,7 @@ NUMERICAL = (
     "couture.sensitivity",
     "couture.pattern",
     "couture.mesh",
+    "couture.adjust",
 )
 """packages that compute: no bus, no UI, no benchmark"""
 

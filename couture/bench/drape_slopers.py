@@ -3,7 +3,8 @@
 For each sloper at its default options: draft, mesh coarse (``--vertices``),
 place around the mannequin (``couture.pattern.placement``), then solve for
 static equilibrium on the mannequin with gravity, seams, contact and friction
-(default fabric, ``schemas.design.Fabric``) with each solver in ``--solvers``
+(default fabric, ``schemas.design.Fabric``; friction from the first iteration, as
+the solver node solves a level from its placement) with each solver in ``--solvers``
 (the best result is kept). Reported per sloper: seam gaps at the placement
 and at the end, relative residual reached, time, the smallest signed distance
 of any vertex to the body (the grid SDF; < 0 is inside), and whether the
@@ -17,6 +18,7 @@ garment, front and side).
 from __future__ import annotations
 
 import argparse
+import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -88,7 +90,12 @@ def drape(
     top0 = x0[:, 1].max()
     best = None
     for name in solvers:
-        out = get_solver(name).solve(model, x0.copy(), tol=tol, max_seconds=max_seconds)
+        solver = get_solver(name)
+        model.release_friction()  # each solver from the placement, with no anchors of the last one
+        # friction from the first iteration, as the solver node solves a level from its placement
+        # (couture.solvers.service.FRICTION_AT_ONCE)
+        opts = {"friction_after": math.inf} if hasattr(solver, "friction_after") else {}
+        out = solver.solve(model, x0.copy(), tol=tol, max_seconds=max_seconds, **opts)
         x = out.x
         phi = sdf.phi_grad(x)[0]
         row = DrapeRow(

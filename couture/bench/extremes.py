@@ -68,6 +68,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import os
 import platform
 import selectors
@@ -447,7 +448,11 @@ def run_case(
     on_solving()
     t1 = time.perf_counter()
     try:
-        res = get_solver(spec["solver"]).solve(model, x0, tol=float(spec["tol"]), max_seconds=float(spec["limit_s"]))
+        solver = get_solver(spec["solver"])
+        # friction from the first iteration, as the solver node solves a level from its
+        # placement (couture.solvers.service.FRICTION_AT_ONCE)
+        opts = {"friction_after": math.inf} if hasattr(solver, "friction_after") else {}
+        res = solver.solve(model, x0, tol=float(spec["tol"]), max_seconds=float(spec["limit_s"]), **opts)
     except Exception as e:  # noqa: BLE001 - a solver that raises has blown up; say how
         row.update(outcome="blew_up", diagnosis=f"exception: {type(e).__name__}: {e}", stop="exception")
         row["wall_s"] = time.perf_counter() - t1

@@ -67,7 +67,7 @@ BEND_CONSTANT = 0.29
 SEAM_STIFFNESS_PER_MU = 5000.0
 """default seam spring stiffness in units of the membrane shear modulus mu (SC source)"""
 
-CONTACT_STIFFNESS_PER_MU = 1000.0
+CONTACT_STIFFNESS_PER_MU = 100.0
 """default contact penalty stiffness in units of mu"""
 
 
@@ -248,9 +248,15 @@ class ClothModel:
             if isinstance(scene.body, str):
                 from couture.cloth import body as body_mod
 
-                if scene.body != "mannequin":
-                    raise ValueError(f"unknown body {scene.body!r}; use a Body or 'mannequin'")
-                self.body = body_mod.load_mannequin_sdf()
+                # 'mannequin' is the default body; any other string names a body of couture.bodies
+                name = "default" if scene.body == "mannequin" else scene.body
+                from couture import bodies
+
+                if name not in bodies.names():
+                    raise ValueError(
+                        f"unknown body {scene.body!r}; use a Body, 'mannequin' or one of {list(bodies.names())}"
+                    )
+                self.body = body_mod.load_mannequin_sdf(name=name)
             else:
                 self.body = scene.body
             terms.append("contact")
@@ -579,6 +585,25 @@ class ClothModel:
             over
         ][touching]
         return int(over.sum())
+
+    def rescale_slipping(self, x: np.ndarray) -> float:
+        """Set each slipping vertex's kinetic friction to mu_k times its normal force
+        at x (the direction is kept): set once at the slip, a force sized to the
+        normal force of that moment would go on pulling after the vertex has slid to
+        where the body pushes less (or not at all), and keep the solve from its
+        balance. Returns the largest change [N] (0 without slipping vertices)."""
+        if "friction" not in self.terms or not self.slipping.any():
+            return 0.0
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        j = np.nonzero(self.slipping)[0]
+        phi, _ = self._contact(np.ascontiguousarray(x[j]))
+        fn = self.contact_normal_force(self.contact_offset - phi)
+        old = self.slip_force[j]
+        size = np.linalg.norm(old, axis=1)
+        scale = np.divide(self.friction_kinetic * fn, size, out=np.zeros_like(size), where=size > 0)
+        new = old * scale[:, None]
+        self.slip_force[j] = new
+        return float(np.max(np.linalg.norm(new - old, axis=1)))
 
     def refresh_contacts(self, x: np.ndarray) -> int:
         """Anchor every vertex in contact that has none (where it is: no force) and let

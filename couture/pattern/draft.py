@@ -206,6 +206,9 @@ def draft(design: Design, spacing: float = SPACING) -> DraftedPattern:
 
 
 def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[DraftedPattern, DraftContext]:
+    from couture.pattern.limits import check_body
+
+    check_body(design.body.name)  # placement reads the body's sections
     sd = sloper_of(design)
     params = resolve(sd.options, design.sloper.params)
     topo = tuple(sorted((o.name, params[o.name]) for o in sd.options if o.integer))
@@ -405,7 +408,7 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
 
     # placement, then seam orientation from the placed segments
     for ring in sloper.rings:
-        for name, pl in fit_ring(ring, by_name).items():
+        for name, pl in fit_ring(ring, by_name, body=design.body.name).items():
             by_name[name].placement = pl
     pattern = DraftedPattern(panels, seams)
     for i, (sp, owner) in enumerate(zip(seams, owners, strict=True)):
@@ -500,4 +503,4 @@ def _mirror(panel: Panel, st: Stroke) -> Panel:
             segments.append(Segment(s.name, s.start, s.stop, s.hole))
             h = len(panel.holes[s.hole])
             segments.append(Segment(s.name + "_mirror", (h - s.stop) % h, (h - s.start) % h, s.hole + nh))
-    return Panel(panel.name, outline, holes, segments, panel.placement)
+    return Panel(panel.name, outline, holes, segments, panel.placement, panel.grain)

@@ -101,6 +101,9 @@ class Panel:
     """named boundary pieces, used by seams"""
     placement: Placement | None = None
     """initial 3D placement; None: flat at z = 0"""
+    grain: float = 0.0
+    """[rad] grain direction from material +y, counter-clockwise: 0 is straight
+    grain along the panel's vertical (every sloper's material y), pi/4 bias"""
 
 
 @dataclass

@@ -75,8 +75,14 @@ RESOLUTION_LIMITS: dict[str, Limit] = {
 }
 """Resolution field -> allowed target vertex counts (a few hundred to the largest meshes measured, 40k, x6)"""
 
-BODIES = ("default",)
-"""mannequins a design may name"""
+
+def check_body(name: str) -> None:
+    """A body a design may name ('default' or a graded size of couture.bodies);
+    PatternError naming it and the bodies otherwise."""
+    from couture import bodies
+
+    if name not in bodies.names():
+        raise PatternError("body.name", f"unknown mannequin {name!r}; mannequins are {list(bodies.names())}")
 
 
 def _number(element: str, v: object) -> float:
@@ -120,13 +126,11 @@ def check_values(design: Design) -> None:
     in their physical ranges; raises PatternError naming the field."""
     check_fabric(design.fabric)
     check_resolution(design.resolution)
-    if design.body.name not in BODIES:
-        raise PatternError("body.name", f"unknown mannequin {design.body.name!r}; mannequins are {list(BODIES)}")
+    check_body(design.body.name)
 
 
 def check_simulation_values(design: Design) -> None:
     """What a solver needs of a design (fabric and body), checked before it
     builds a cloth model; raises PatternError naming the field."""
     check_fabric(design.fabric)
-    if design.body.name not in BODIES:
-        raise PatternError("body.name", f"unknown mannequin {design.body.name!r}; mannequins are {list(BODIES)}")
+    check_body(design.body.name)

@@ -148,9 +148,10 @@ def _grow_to(base: np.ndarray, girth: float, lo: float = 0.0) -> np.ndarray:
     return base + d
 
 
-def fit_ring(ring, panels: dict[str, Panel]) -> dict[str, Placement]:
-    """'wrap' placements of a ring's panels: the body section plus margin,
-    grown to the garment's girth, with the panels tiling it (module docstring)."""
+def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str, Placement]:
+    """'wrap' placements of a ring's panels: the section of ``body`` (a name of
+    couture.bodies) plus margin, grown to the garment's girth, with the panels
+    tiling it (module docstring)."""
     from couture.pattern.sections import sections
 
     outlines = [np.asarray(panels[n].outline, float) for n in ring.panels]
@@ -169,7 +170,7 @@ def fit_ring(ring, panels: dict[str, Panel]) -> dict[str, Placement]:
     f = f - (f @ a) * a
     f = f / np.linalg.norm(f)
     b = np.cross(a, f)
-    sec = sections()[ring.section] if getattr(ring, "section", None) else None
+    sec = sections(body)[ring.section] if getattr(ring, "section", None) else None
     K = 64
     if sec is not None:
         K = sec.radius.shape[1]

@@ -160,10 +160,14 @@ def save_sections(sections: dict[str, Section], path: Path = SECTIONS_PATH) -> N
     np.savez_compressed(path, **arrays)
 
 
-@lru_cache(maxsize=1)
-def sections() -> dict[str, Section]:
-    """The stored tables (regenerate with ``python -m couture.pattern.sections``)."""
-    with np.load(SECTIONS_PATH) as z:
+@lru_cache(maxsize=16)
+def sections(body: str = "default") -> dict[str, Section]:
+    """The stored tables of a body ('default': regenerate with
+    ``python -m couture.pattern.sections``; a graded body's are written by
+    ``couture bodies make``)."""
+    from couture import bodies
+
+    with np.load(bodies.sections_path(body)) as z:
         names = sorted({k.split(".")[0] for k in z.files})
         return {
             n: Section(

@@ -287,8 +287,10 @@ class FrictionSchedule:
        sliding or turning on the body: friction is what stops it).
     3. ``during``, every ``every`` iterations: anchors pulled beyond mu_s f_n slip
        (``slip_friction``: kinetic friction as a constant force), so a slide spreads
-       within one solve. Anchors never move otherwise: re-anchoring sliding vertices
-       at the kinetic limit as the cloth moves creeps without end.
+       within one solve, and the kinetic friction of slipping vertices is resized
+       to mu_k f_n where they now are (``rescale_slipping``). Anchors never move
+       otherwise: re-anchoring sliding vertices at the kinetic limit as the cloth
+       moves creeps without end.
     4. ``at_balance`` (residual <= tol): slipping vertices stick where they came to
        rest, new contacts are anchored, anchors off the body let go; if an anchor
        still holds more than mu_s f_n (beyond ``friction_allowance``) it slips and
@@ -328,7 +330,9 @@ class FrictionSchedule:
             # far from a balance the anchors carry transients, not the cloth's pull
             n = self.model.slip_friction(x)
             self.slipped += n
-            return n > 0
+            # kinetic friction follows the normal force where the vertex now is
+            rescaled = self.model.rescale_slipping(x) if hasattr(self.model, "rescale_slipping") else 0.0
+            return n > 0 or rescaled > 0.0
         return False
 
     def holds(self) -> bool:

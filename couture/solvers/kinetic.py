@@ -134,6 +134,7 @@ class KineticSolver:
         friction_after: friction anchors act only once the relative residual
         is below this (a start above it releases all anchors first) or the
         solve crawls (its residual not halved in ``crawl_window`` steps);
+        ``solve(friction_after=...)`` overrides it for one solve;
         max_backtracks: halvings of a step that raised the energy before
         the velocity is zeroed or dt shortened (keeps dt, hence the
         factorization, through isolated bad steps)."""
@@ -219,6 +220,7 @@ class KineticSolver:
         max_seconds: float = 60.0,
         callback: ProgressCallback | None = None,
         v0: np.ndarray | None = None,
+        friction_after: float | None = None,
     ) -> SolveResult:
         t_start = time.perf_counter()
         dt = self.dt
@@ -296,7 +298,14 @@ class KineticSolver:
             crawling = len(recent) > self.crawl_window and r > 0.5 * recent[-1 - self.crawl_window] and r < 1.0
             tf = time.perf_counter()
             if fric is None:
-                fric = FrictionSchedule(model, x, r, tol, self.friction_after, self.friction_every)
+                fric = FrictionSchedule(
+                    model,
+                    x,
+                    r,
+                    tol,
+                    self.friction_after if friction_after is None else friction_after,
+                    self.friction_every,
+                )
                 changed = fric.present
             else:
                 changed = fric.after_step(it, x, r, crawling)

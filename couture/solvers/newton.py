@@ -25,6 +25,13 @@ Friction: ``common.FrictionSchedule`` (anchors once the residual is below
 ``friction_after`` or the solve crawls; slips of anchors beyond mu_s every
 ``friction_every`` iterations; at a balance, convergence requires every
 anchor within the static Coulomb limit).
+Crawls: where the Newton path creeps down a long shallow valley (a frictionless
+sheet held at one vertex on a sphere, its folds forming and rolling: the energy
+falls by 1e-5 per iteration for a thousand iterations), the solve hands over to
+damped implicit dynamics (``KineticSolver``, pseudo-transient continuation with
+momentum) from its best state until the residual is a tenth of it and at most
+``dynamics_until`` (where Newton's local convergence takes over), then goes on
+with Newton; the dynamics only choose the path, the fixed point is f = 0.
 ``converged`` is decided at return from fresh forces (``common.verdict``);
 a solve that stops early returns the best state it saw.
 """
@@ -77,6 +84,8 @@ class NewtonSolver:
         friction_every: int = 5,
         forcing: float = 0.1,
         forcing_max: float = 1e-2,
+        dynamics_phases: int = 2,
+        dynamics_until: float = 1e-4,
     ):
         """backend: 'auto' | 'pardiso32' | 'pardiso' | 'cholmod' | 'splu'; armijo: sufficient-decrease
         constant; h0, h_min [s]: Levenberg time scale (the term is M/h²);
@@ -87,10 +96,14 @@ class NewtonSolver:
         (module docstring);
         shift_floor [s]: the shortest time scale h_true of the mass shift M/h_true² that makes
         an indefinite true Hessian definite before a step falls back to the projected one;
-        friction_after, friction_every: friction schedule;
+        friction_after, friction_every: friction schedule (``solve(friction_after=...)``
+        overrides the first for one solve);
         forcing: the direction's linear system is solved to a relative residual
         min(1e-2, forcing * r) at relative force residual r (inexact Newton; only
-        approximate backends use it: 'auto' picks single-precision PARDISO)."""
+        approximate backends use it: 'auto' picks single-precision PARDISO);
+        dynamics_phases: how many times a crawl (the residual not improved by 1 % in
+        ``stall_window`` iterations) hands over to damped dynamics (module docstring),
+        each time until the residual is a tenth of the best or ``dynamics_until``."""
         self.backend = resolve_backend(backend, approximate=True)
         self.forcing = forcing
         self.forcing_max = forcing_max
@@ -109,6 +122,11 @@ class NewtonSolver:
         self.shift_floor = shift_floor
         self.friction_after = friction_after
         self.friction_every = max(1, int(friction_every))
+        self.dynamics_phases = int(dynamics_phases)
+        self.dynamics_until = dynamics_until
+        from .kinetic import KineticSolver
+
+        self._dynamics = KineticSolver(friction_after=friction_after, friction_every=friction_every, stall_window=5000)
         self._cache = None
         self._factor: Factor | None = None  # kept across solves on one model: its symbolic analysis is reused
 
@@ -131,6 +149,7 @@ class NewtonSolver:
         max_iters: int = 1000,
         max_seconds: float = 120.0,
         callback: ProgressCallback | None = None,
+        friction_after: float | None = None,
     ) -> SolveResult:
         t_start = time.perf_counter()
         n = model.n
@@ -160,6 +179,8 @@ class NewtonSolver:
         true_mode = False
         recent: list[float] = []
         watch = Watch(self.stall_window)
+        crawl_watch = Watch(self.stall_window)  # the residual alone: blind to energy progress
+        phases = 0
         factor = self._factor
         diag = ""
         converged = False
@@ -170,7 +191,9 @@ class NewtonSolver:
         E = model.energy(x)
         res_scale = ResidualScale(model, x, f)
         r = res_scale(x, f)
-        fric = FrictionSchedule(model, x, r, tol, self.friction_after, self.friction_every)
+        fric = FrictionSchedule(
+            model, x, r, tol, self.friction_after if friction_after is None else friction_after, self.friction_every
+        )
         f = model.forces(x)
         E = model.energy(x)
         r = res_scale(x, f)
@@ -207,6 +230,40 @@ class NewtonSolver:
                 e_mark = E
                 watch.progress(it)
             d = watch.check(it, r)
+            crawl = crawl_watch.check(it, r)
+            if (d or crawl).startswith("stalled") and phases < self.dynamics_phases and now < max_seconds:
+                # the Newton path crawls down a long shallow valley (folds forming and
+                # rolling, a garment turning): damped dynamics, whose momentum carries it
+                # through, from the best state to a tenth of its residual, then Newton again
+                phases += 1
+                x0 = best.restore()
+                sub = None if callback is None else (lambda i, xs, rs, it0=it: callback(it0 + i, xs, rs))
+                dyn = self._dynamics.solve(
+                    model,
+                    x0,
+                    tol=max(tol, min(0.1 * best.r, self.dynamics_until)),
+                    max_seconds=max_seconds - now,
+                    callback=sub,
+                )
+                stats["dynamics_phases"] = phases
+                log.debug(
+                    "newton it %d: dynamics from %.3g to %.3g in %d steps", it, best.r, dyn.residual, dyn.iterations
+                )
+                stats["dynamics_steps"] = stats.get("dynamics_steps", 0) + dyn.iterations
+                history.extend((now + t, rr) for t, rr in dyn.history)
+                x = dyn.x
+                it += 1
+                f = model.forces(x)
+                E = model.energy(x)
+                r = res_scale(x, f)
+                e_mark = E
+                watch.restart(it)
+                crawl_watch.restart(it)
+                h, h_true = self.h0, self.h0
+                if dyn.diagnosis.startswith("stopped by callback"):
+                    diag = dyn.diagnosis
+                    break
+                continue
             if d:
                 diag = d
                 break
@@ -333,12 +390,13 @@ class NewtonSolver:
                 h = max(h / 10.0, self.h_min)
             stats["true_hessian_steps"] += int(use_true)
             log.debug(
-                "newton it %d: r %.3e E %.9e alpha %.3g h %.3g true %s |P| %.3g",
+                "newton it %d: r %.3e E %.9e alpha %.3g h %.3g ht %.3g true %s |P| %.3g",
                 it,
                 r,
                 E,
                 alpha,
                 h,
+                h_true,
                 use_true,
                 float(np.max(np.abs(P))),
             )

@@ -14,6 +14,21 @@ Warm start, in order of preference, for a level's new mesh:
 3. for the fine level: the new coarse equilibrium prolongated (cascadic) and
    polished (``cascadic.polish_prolongated``: fine seams closed, contact depths),
 4. the mesh's own x0 (initial placement, or state the remesher transferred).
+
+Friction acts on the coarse level from its first iteration (``FRICTION_AT_ONCE``):
+frictionless settling lets a garment that only friction holds up (trousers,
+a dress on the shoulders) slide and turn for as long as the solve lasts, and
+the fine level then starts on a coarse drape that friction never shaped.
+Anchors made at the placement are not a pin: each one slips as soon as it
+holds more than mu_s f_n, with a kinetic friction that follows the normal
+force. So does every level that starts from this solver's previous drape or
+from a prediction made on it (an edit): the cloth rests there on its anchors,
+and releasing them because the edit put the residual above the solver's
+``friction_after`` would let the garment slide where friction holds it (and
+away from what the friction-aware sensitivity predicted). A fine level that
+starts from the prolongated coarse drape keeps the solvers' own schedule
+(friction once the residual is small): that start is a coarse equilibrium
+already, and anchors made on its seam and contact transients would pin them.
 """
 
 from __future__ import annotations
@@ -38,6 +53,9 @@ from schemas.design import Design
 
 log = logging.getLogger(__name__)
 
+FRICTION_AT_ONCE = ("coarse",)
+"""levels whose friction anchors act from the first iteration (module docstring)"""
+
 
 def scene_from_design(design: Design) -> Scene:
     """The terms a design's scene needs (absent terms are never built), with
@@ -50,7 +68,8 @@ def scene_from_design(design: Design) -> Scene:
         v = getattr(flags, name)
         if not (math.isfinite(v) and v > 0):
             raise ValueError(f"scene.{name}: {v!r} is not a positive finite factor")
-    body = "mannequin" if flags.body else None
+    # the default body keeps its old name; a graded body goes by its own (couture.bodies)
+    body = ("mannequin" if design.body.name == "default" else design.body.name) if flags.body else None
     mu, _ = lame_parameters(design.fabric.stretch_stiffness, design.fabric.poisson_ratio)
     # a factor of 1 leaves the model's own default in charge (None)
     seam = None if flags.seam_stiffness_scale == 1.0 else flags.seam_stiffness_scale * SEAM_STIFFNESS_PER_MU * mu
@@ -119,6 +138,7 @@ class SolveService:
     """level -> (mesh_generation the prediction was made on, x)"""
     prolongation: tuple[np.ndarray, np.ndarray] | None = None
     matcher: MeshMatcher[IncomingMesh] = field(default_factory=MeshMatcher)
+    friction_at_once: tuple[str, ...] = FRICTION_AT_ONCE
 
     def __post_init__(self) -> None:
         self.solver = get_solver(self.method)
@@ -164,11 +184,17 @@ class SolveService:
 
     # -- state
     def set_design(self, design: Design) -> bool:
-        """Returns True when fabric or scene changed (models must be rebuilt).
+        """Returns True when fabric, scene or body changed (models must be rebuilt;
+        each level keeps its state, so a new body re-drapes from the current drape).
         Raises PatternError naming the field (``fabric.area_density``, ...)
         for a fabric outside its physical range, keeping the current design."""
         check_simulation_values(design)
-        changed = self.design is None or design.fabric != self.design.fabric or design.scene != self.design.scene
+        changed = (
+            self.design is None
+            or design.fabric != self.design.fabric
+            or design.scene != self.design.scene
+            or design.body != self.design.body
+        )
         self.design = design
         if changed:
             for lm in self.levels.values():
@@ -254,8 +280,10 @@ class SolveService:
                     on_progress(level, it, x, res)
                 return False
 
+            at_once = level in self.friction_at_once or how in ("previous", "prediction")
+            opts = {"friction_after": math.inf} if at_once and hasattr(self.solver, "friction_after") else {}
             result = self.solver.solve(
-                lm.model, x0, tol=self.tol[level], max_seconds=self.max_seconds[level], callback=cb
+                lm.model, x0, tol=self.tol[level], max_seconds=self.max_seconds[level], callback=cb, **opts
             )
             lm.x = result.x
             lm.converged = result.converged

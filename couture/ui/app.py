@@ -352,6 +352,10 @@ class CoutureUI:
     def _adopt(self, design: Design) -> None:
         self.controls.show_design(design)
         self.view3d.set_fabric(design.fabric)
+        try:
+            self.view3d.set_body(design.body.name)
+        except ValueError:
+            log.warning("unknown body %r: the view keeps %r", design.body.name, self.view3d.body_name)
         self.drafter.slot.put(design)
 
     def _pick(self, mp: MaterialPoint) -> None:

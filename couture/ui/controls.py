@@ -1,5 +1,5 @@
 """The design controls on the 3D server's panel: sloper and its options,
-fabric, mesh resolution, the solver whose drapes are shown, the colour map
+the body, fabric, mesh resolution, the solver whose drapes are shown, the colour map
 and its legend. Every change the designer makes becomes a new Design handed
 to ``on_design``; :meth:`Controls.show_design` mirrors a design that came
 from elsewhere without handing anything back."""
@@ -41,6 +41,13 @@ class Controls:
                 "sloper", tuple(kinds), initial_value=d.sloper.kind if d.sloper.kind in kinds else kinds[0]
             )
             on_user_change(self.sloper, self.sloper_chosen)
+            from couture import bodies
+
+            names = bodies.names()
+            self.body = gui.add_dropdown(
+                "body", names, initial_value=d.body.name if d.body.name in names else "default"
+            )
+            on_user_change(self.body, self.body_chosen)
             self._option_folder = gui.add_folder("options")
             self.params: dict[str, Any] = {}
             """option name -> its slider"""
@@ -83,6 +90,8 @@ class Controls:
         for name, h in self.params.items():
             if name in d.sloper.params:
                 h.value = float(d.sloper.params[name])
+        if d.body.name in self.body.options:
+            self.body.value = d.body.name  # type: ignore[misc]  # viser has the setter; mypy misses it
         f = d.fabric
         self.preset.value = f.name if f.name in FABRIC_PRESETS else "custom"  # type: ignore[misc]  # viser has the setter; mypy misses it
         self.bend.value, self.stretch.value, self.density.value = f.bend_stiffness, f.stretch_stiffness, f.area_density  # type: ignore[misc]  # viser has the setter; mypy misses it
@@ -167,6 +176,11 @@ class Controls:
                 area_density=float(self.density.value),
             )
         )
+
+    def body_chosen(self) -> None:
+        """Another body: the same garment, re-draped from its current drape."""
+        d = self.design()
+        self.on_design(msgspec.structs.replace(d, body=msgspec.structs.replace(d.body, name=str(self.body.value))))
 
     def _set_fabric(self, fabric: Fabric) -> None:
         self.on_design(msgspec.structs.replace(self.design(), fabric=fabric))

@@ -82,17 +82,9 @@ class DrapeView:
 
         server.scene.set_up_direction("+y")
         self.body_distance: colormaps.BodyDistance | None = None
-        self.body_vertices, self.body_faces = load_body()
-        if show_body:
-            server.scene.add_mesh_simple(
-                "/body",
-                self.body_vertices.astype(np.float32),
-                self.body_faces.astype(np.uint32),
-                color=BODY_COLOR,
-                side="front",
-                cast_shadow=False,
-                receive_shadow=False,
-            )
+        self.show_body = show_body
+        self.body_name = ""
+        self.set_body("default")
         # the mannequin fills the canvas's height (or its width, on a wide canvas)
         self.body_box = (self.body_vertices.min(axis=0), self.body_vertices.max(axis=0))
         ic = server.initial_camera
@@ -130,6 +122,28 @@ class DrapeView:
         for h in [self.plain, *self.bands]:
             h.on_drag(self._on_drag)
             h.on_click(self._on_click)
+
+    def set_body(self, name: str) -> None:
+        """Show the body ``name`` (couture.bodies: 'default' or a graded size)."""
+        from couture import bodies
+
+        with self._lock:
+            if name == self.body_name:
+                return
+            path = bodies.obj_path(name)
+            self.body_vertices, self.body_faces = load_body(path)
+            self.body_distance = None
+            self.body_name = name
+            if self.show_body:
+                self.server.scene.add_mesh_simple(
+                    "/body",
+                    self.body_vertices.astype(np.float32),
+                    self.body_faces.astype(np.uint32),
+                    color=BODY_COLOR,
+                    side="front",
+                    cast_shadow=False,
+                    receive_shadow=False,
+                )
 
     def fit_body(self, aspect: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
         """Camera (position, look_at) [m] of a front view in which the

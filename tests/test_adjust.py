@@ -1,0 +1,295 @@
+"""Pattern adjustment (Bartle et al. 2016, couture.adjust): the fixed point's
+pieces against closed forms, the edits' targets, and the whole adjustment
+with its solves answered by solver node processes over the bus."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from couture.adjust import fixed_point_update, hem_edit, waist_edit
+from couture.adjust.geometry import (
+    SurfaceDistance,
+    edges2,
+    flatten,
+    frames3,
+    hausdorff,
+    lscm,
+    stretch,
+)
+from couture.adjust.seams import equalize_seams, max_seam_mismatch
+from couture.mesh import grid_sheet
+
+
+def _sheet(nx=14, ny=10, w=0.6, h=0.4, jitter=0.004):
+    return grid_sheet(w, h, nx, ny, jitter=jitter, seed=3)
+
+
+def _grid(nx=14, ny=10):
+    """A structured grid on [0, 1]²: columns are straight lines (generators)."""
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    U = np.column_stack([i.ravel() / (nx - 1), j.ravel() / (ny - 1)])
+    v = lambda a, b: a * ny + b  # noqa: E731
+    tris = []
+    for a in range(nx - 1):
+        for b in range(ny - 1):
+            tris += [[v(a, b), v(a + 1, b), v(a + 1, b + 1)], [v(a, b), v(a + 1, b + 1), v(a, b + 1)]]
+    return U, np.array(tris, np.int32)
+
+
+def _cylinder(U, R=0.25):
+    """Columns of the grid on generators of a cylinder: every quad is a planar
+    rectangle, so the mesh is intrinsically flat (discretely developable)."""
+    a = 1.2 * U[:, 0]
+    return np.column_stack([R * np.sin(a), 0.4 * U[:, 1], R * np.cos(a)])
+
+
+def _cone(U, k=0.5):
+    """Columns on rays of a cone from its apex: every quad is a planar trapezoid."""
+    phi = 2.0 * U[:, 0]
+    r = 0.3 + 0.4 * U[:, 1]
+    return np.column_stack([k * r * np.sin(phi), -r * np.sqrt(1 - k * k), k * r * np.cos(phi)])
+
+
+@pytest.mark.parametrize("surface", [_cylinder, _cone])
+def test_flattening_a_developable_surface_is_isometric(surface):
+    U, tris = _grid()
+    x = surface(U)
+    t3 = frames3(x, tris)
+    # the 3D surface is not the plane: its triangles are bent (non-trivial input)
+    n = np.cross(x[tris[:, 1]] - x[tris[:, 0]], x[tris[:, 2]] - x[tris[:, 0]])
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    assert np.ptp(n, axis=0).max() > 0.5
+    for X in (lscm(x, tris), flatten(x, tris)):
+        S = stretch(t3, edges2(X, tris))
+        assert np.abs(S - 1).max() < 1e-6
+        assert (np.linalg.det(edges2(X, tris)) > 0).all()  # counter-clockwise, as GarmentMesh wants
+
+
+def test_flattening_a_sphere_cap_stretches():
+    """A doubly curved cap cannot flatten isometrically: the stretch says so."""
+    m = _sheet(jitter=0.0)
+    X = m.X - m.X.mean(axis=0)
+    R = 0.5
+    z = np.sqrt(R**2 - (X**2).sum(axis=1))
+    x = np.column_stack([X, z])
+    S = stretch(frames3(x, m.tris), edges2(flatten(x, m.tris), m.tris))
+    assert S.mean() < 1 - 1e-4 and S.mean() > 0.9
+
+
+def test_stretch_is_eq8_of_the_principal_stretches():
+    rng = np.random.default_rng(0)
+    T = rng.normal(size=(20, 2, 2))
+    T[np.linalg.det(T) < 0] *= np.array([[-1.0, 1.0], [-1.0, 1.0]])
+    F = np.array([[1.1, 0.0], [0.0, 0.95]])
+    R = np.array([[0.6, -0.8], [0.8, 0.6]])
+    S = stretch(R @ F @ T, T)  # target = a rotated, stretched copy
+    assert np.allclose(S, 1 - np.hypot(0.1, 0.05), atol=1e-12)
+    assert np.allclose(stretch(R @ T, T), 1.0, atol=1e-12)
+
+
+def test_fixed_point_update_recovers_a_known_per_triangle_deformation():
+    """If the simulation deforms every aligned triangle by a fixed A (upper
+    triangular, as any map between aligned frames is), one update gives
+    pattern triangles that simulate exactly to the target (Bartle eq. 5-7)."""
+    rng = np.random.default_rng(1)
+    m = 50
+
+    def upper(lo, hi):
+        U = np.zeros((m, 2, 2))
+        U[:, 0, 0] = rng.uniform(lo, hi, m)
+        U[:, 1, 1] = rng.uniform(lo, hi, m)
+        U[:, 0, 1] = rng.uniform(-0.3, 0.3, m)
+        return U
+
+    def aligned(T):  # a 2D triangle's aligned-frame edge matrix
+        x = np.zeros((m * 3, 3))
+        x[0::3, :2], x[1::3, :2], x[2::3, :2] = 0.0, T[:, :, 0], T[:, :, 1]
+        return frames3(x, np.arange(3 * m).reshape(m, 3))
+
+    A = upper(1.0, 1.2)  # the simulation stretches
+    theta = rng.uniform(0, 2 * np.pi, m)
+    rot = np.stack([np.stack([np.cos(theta), -np.sin(theta)], -1), np.stack([np.sin(theta), np.cos(theta)], -1)], 1)
+    T = rot @ upper(0.02, 0.05)  # pattern triangles, arbitrarily rotated in the plane
+    t_target = upper(0.02, 0.05)
+    t_k = A @ aligned(T)
+    assert np.abs(stretch(t_target, t_k) - 1).max() > 0.05  # not there yet
+    T_new = fixed_point_update(T, t_k, t_target)
+    assert np.allclose(A @ aligned(T_new), t_target, atol=1e-13)
+
+
+def test_hausdorff_against_closed_forms():
+    m = _sheet(jitter=0.0)
+    flat = np.column_stack([m.X, np.zeros(len(m.X))])
+    lifted = flat + np.array([0.0, 0.0, 0.013])
+    H = hausdorff(flat, lifted, m.tris)
+    assert H["hausdorff"] == pytest.approx(0.013, abs=1e-12) and H["mean"] == pytest.approx(0.013, abs=1e-12)
+    # a point's distance to the sheet, brute force over every triangle's exact closest point
+    rng = np.random.default_rng(2)
+    P = np.column_stack([rng.uniform(-0.2, 0.8, 200), rng.uniform(-0.2, 0.6, 200), rng.normal(0, 0.05, 200)])
+    _, d, _ = SurfaceDistance(flat, m.tris).closest(P)
+    cx = np.clip(P[:, 0], 0, 0.6)
+    cy = np.clip(P[:, 1], 0, 0.4)
+    ref = np.sqrt((P[:, 0] - cx) ** 2 + (P[:, 1] - cy) ** 2 + P[:, 2] ** 2)
+    assert np.allclose(d, ref, atol=1e-9)
+
+
+# ---------------------------------------------------------------- on a garment
+
+
+@pytest.fixture(scope="module")
+def skirt():
+    """The default skirt at 200 coarse vertices, draped in-process (Newton)."""
+    from couture.adjust.fixed_point import local_simulator
+    from couture.adjust.pipeline import garment_mesh
+    from couture.client import load_design
+
+    design = load_design("couture/pattern/examples/default_skirt.json")
+    mesh = garment_mesh(design, 200)
+    src = local_simulator(mesh, design)(mesh.X, mesh.x0)
+    assert src.converged
+    return design, mesh, src.x
+
+
+def test_hem_edit_cuts_the_drape_along_its_own_surface(skirt):
+    _, mesh, x = skirt
+    t = hem_edit(x, mesh.tris, -0.15)
+    assert t.achieved == pytest.approx(-0.15, abs=0.01)  # the hem rose 15 cm: the garment is 15 cm shorter
+    keep = x[:, 1] >= t.info["y_fix"]
+    assert keep.sum() > 10 and np.array_equal(t.x[keep], x[keep])  # the top part stays
+    _, d, _ = SurfaceDistance(x, mesh.tris).closest(t.x)
+    assert d.max() < 1e-6  # the target lies on the source surface: fit and flare kept
+    assert t.x[:, 1].min() == pytest.approx(x[:, 1].min() + 0.15, abs=0.01)
+    with pytest.raises(ValueError, match="only shortening"):
+        hem_edit(x, mesh.tris, +0.05)
+
+
+def test_waist_edit_loosens_the_girth_and_fades_out(skirt):
+    from couture.adjust.target import section_girth
+
+    _, mesh, x = skirt
+    y0 = 0.2
+    t = waist_edit(x, mesh.tris, 0.04, y_loop=y0, band=0.1)
+    assert section_girth(t.x, mesh.tris, y0) - section_girth(x, mesh.tris, y0) == pytest.approx(0.04, abs=1e-4)
+    far = np.abs(x[:, 1] - y0) >= 0.1
+    assert far.sum() > 10 and np.array_equal(t.x[far], x[far])
+
+
+def test_equalized_seams_match(skirt):
+    _, mesh, _ = skirt
+    rng = np.random.default_rng(4)
+    X = mesh.X + rng.normal(scale=0.002, size=mesh.X.shape)
+    assert max_seam_mismatch(mesh, mesh.X) < 1e-4  # drafted seams match
+    assert max_seam_mismatch(mesh, X) > 1e-3
+    Xe = equalize_seams(mesh, X)
+    assert max_seam_mismatch(mesh, Xe) < 1e-9
+    assert stretch(edges2(Xe, mesh.tris), edges2(X, mesh.tris)).mean() > 0.98  # the rest barely moved
+
+
+@pytest.mark.timeout(120)
+def test_adjustment_over_two_solver_processes_matches_one_and_beats_flattening(skirt):
+    """Every solve of the adjustment is a `solve` request to solver node
+    processes; fanned out over two of them the result is the one of one
+    (within what the solver's tolerance allows), and the adjusted pattern's
+    drape is closer to the target than the flattening-only one's."""
+    from couture.adjust import adjust
+    from couture.adjust.pipeline import make_target
+    from couture.bench.adjust import solver_session
+    from couture.client import SolveFanout
+
+    design, mesh, x = skirt
+    target = make_target("hem", -0.15, x, mesh.tris).x
+    with solver_session(["newton", "newton"]) as (client, names):
+        assert names == ["solver-newton0", "solver-newton1"]
+        runs = []
+        for use in ([names[0]], names):
+            fan = SolveFanout(client, mesh, design, use, max_seconds=30)
+            r = adjust(mesh, target, fan, x_source=x, max_iters=2, stop_stretch=1.1, stagnation=-1, log=None)
+            runs.append((r, dict(fan.counts)))
+    (one, c1), (two, c2) = runs
+    assert c1 == {names[0]: 3} and c2 == {names[0]: 2, names[1]: 1}
+    assert all(h.converged and h.flipped_triangles == 0 for r in (one, two) for h in r.history)
+    for a, b in zip(one.history, two.history, strict=True):
+        assert abs(a.stretch_mean - b.stretch_mean) < 1e-3
+        assert abs(a.hausdorff_m - b.hausdorff_m) < 1e-3
+    assert np.abs(one.patterns[-1] - two.patterns[-1]).max() < 1e-3  # [m]
+    for r in (one, two):
+        flat, best = r.history[0], r.history[r.best]
+        assert best.hausdorff_m < 0.7 * flat.hausdorff_m  # 200 vertices: 60 -> 32 mm
+        assert best.stretch_mean > flat.stretch_mean + 0.01
+
+
+@pytest.mark.timeout(120)
+def test_couture_adjust_writes_a_cuttable_pattern(tmp_path):
+    """The command end to end on a small skirt: its solver node started, the
+    adjusted pattern written as DXF that reads back with the panels' outlines,
+    seams of equal length, and the numbers in adjust.json."""
+    import json
+
+    from couture.adjust.pipeline import garment_mesh
+    from couture.adjust.seams import max_seam_mismatch
+    from couture.cli import main
+    from couture.client import load_design
+    from couture.pattern.io import import_dxf
+
+    src = "couture/pattern/examples/default_skirt.json"
+    rc = main(["adjust", src, "--hem", "-0.15", "--out", str(tmp_path), "--vertices", "200", "--iters", "1"])
+    assert rc == 0
+    s = json.loads((tmp_path / "adjust.json").read_text())
+    assert s["solvers"] == ["solver-newton"] and len(s["iterations"]) == 2
+    assert s["adjusted"]["hausdorff_pct"] < s["flattening_only"]["hausdorff_pct"]
+    pieces = import_dxf(tmp_path / "pattern.dxf")
+    z = np.load(tmp_path / "adjust_mesh.npz")
+    mesh = garment_mesh(load_design(src), 200)
+    assert sorted(pieces) == sorted(mesh.panel_names)
+    # the DXF holds the adjusted outlines at true scale (mm in the file, read back in m)
+    area = sum(abs(np.linalg.det(edges2(z["X_adjusted"], z["tris"]))) / 2)
+    dxf_area = sum(
+        0.5
+        * abs(
+            np.sum(
+                p["outline"][:, 0] * np.roll(p["outline"][:, 1], -1)
+                - np.roll(p["outline"][:, 0], -1) * p["outline"][:, 1]
+            )
+        )
+        for p in pieces.values()
+    )
+    assert dxf_area == pytest.approx(area, rel=1e-4)
+    assert max_seam_mismatch(mesh, z["X_adjusted"]) < 1e-6
+    assert (tmp_path / "adjust.png").stat().st_size > 10_000
+
+
+def test_gradient_steps_jacobian_matches_finite_differences():
+    """∂x/∂X of the equilibrium (couture.adjust.gradient.jacobian) against
+    central differences of Newton solves, on a sheet hanging from two corners."""
+    from couture.adjust.gradient import jacobian
+    from couture.cloth.model import ClothModel
+    from couture.solvers import get_solver
+    from couture.solvers.service import scene_from_design
+    from schemas.design import Design, SceneFlags
+    from tests.solver_testmodel import horizontal
+
+    m = horizontal(grid_sheet(0.3, 0.3, 7, 7), center=(0.15, 0.15))
+    top = np.nonzero(np.isclose(m.X[:, 1], 0.3))[0]
+    m.pinned = top[[np.argmin(m.X[top, 0]), np.argmax(m.X[top, 0])]].astype(np.int32)
+    design = Design(scene=SceneFlags(body=False, friction=False, seams=False))
+    newton = get_solver("newton")
+
+    def drape(X, x0):
+        from couture.adjust import with_rest
+
+        model = ClothModel(with_rest(m, X), design.fabric, scene_from_design(design))
+        r = newton.solve(model, x0, tol=1e-11, max_seconds=30)
+        assert r.converged
+        return r.x
+
+    x = drape(m.X, m.x0)
+    J = jacobian(m, design, m.X, x)
+    rng = np.random.default_rng(5)
+    dX = rng.normal(size=m.X.shape)
+    dX[m.pinned] = 0.0
+    lin = (J @ dX.ravel()).reshape(-1, 3)
+    h = 1e-5
+    fd = (drape(m.X + h * dX, x) - drape(m.X - h * dX, x)) / (2 * h)
+    assert np.linalg.norm(lin) > 1e-2  # not trivially zero
+    assert np.linalg.norm(lin - fd) < 1e-3 * np.linalg.norm(fd)
