@@ -27,6 +27,7 @@ the pool see each other in the node's own session and share the sessions out
 from __future__ import annotations
 
 import logging
+import math
 import os
 import threading
 from dataclasses import dataclass, field, replace
@@ -343,8 +344,14 @@ def serve(
             mesh = lm.mesh
         model = ClothModel(mesh, design.fabric, scene_from_design(design))
         x0 = req.x_warm.numpy() if req.x_warm is not None else mesh.x0
+        # friction from the first iteration, as this node solves a level from a placement or a warm start
         r = get_solver(config.solver, **solver_options(config)).solve(
-            model, np.array(x0), tol=req.tol, max_iters=req.max_iters, max_seconds=req.max_seconds
+            model,
+            np.array(x0),
+            tol=req.tol,
+            max_iters=req.max_iters,
+            max_seconds=req.max_seconds,
+            friction_after=math.inf,
         )
         return SolveResultMsg(
             method=config.solver,
