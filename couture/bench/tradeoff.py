@@ -44,7 +44,6 @@ measurement.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import platform
 import time
@@ -274,9 +273,10 @@ def reference(scene: Scene, seconds: float, log=print) -> dict:
     raise RuntimeError(f"{scene.name}: no reference: fine Newton did not converge even to {REFERENCE_TOLS[-1]}")
 
 
-AS_LIVE = math.inf
-"""a re-solve from the old drape keeps its friction anchors from the first iteration, as the
-solver node does for a warm start from its previous drape (couture.solvers.service)"""
+AS_LIVE = None
+"""a re-solve from the old drape keeps the solver's own friction schedule, as the solver node
+does for a warm start (couture.solvers.service.FRICTION_AT_ONCE: only a placement has friction
+at once)"""
 
 LINEAR_FRICTIONLESS = "linear_nofric"
 """diagnostic: the linear prediction from a frictionless linearisation (the node holds friction)"""
