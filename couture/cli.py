@@ -827,6 +827,9 @@ def export_pattern(args: argparse.Namespace) -> int:
     for p in pieces:
         print(f"  {p.name}: {p.labels[-1]}, {len(p.notches)} notches, {len(p.drills)} drill holes")
     print(f"wrote into {out}: {', '.join(written)}")
+    return 0
+
+
 def adjust(args: argparse.Namespace) -> int:
     """``couture adjust``: see its --help."""
     from couture.adjust.pipeline import plot_case, write_outputs

@@ -79,8 +79,8 @@ def test_fig5_error_order_dynamics_linear_gmls(fig5):
     # is about the predictor's on-line time (measured: press 23 ms + predict
     # 4 ms; a kinetic step 2-5 ms on this 148-vertex strip), and the baseline
     # is shown alive: given DYN_ALIVE steps it reaches the truth far below
-    # the GMLS error (measured: at 30 steps already 5e-3 m rms, below linear's
-    # 2.6e-2; at 100 steps 3e-11 m).
+    # the GMLS error (measured with contact stiffness 1000 mu: at 30 steps already
+    # 5e-3 m rms, below linear's 2.6e-2; at 100 steps 3e-11 m).
     mT = p.model_for(dT)
     e_still = rms(x0, xT)
     dyn = get_solver("kinetic").solve(mT, x0, tol=1e-12, max_iters=DYN_STEPS)
@@ -95,7 +95,12 @@ def test_fig5_error_order_dynamics_linear_gmls(fig5):
     # the force residuals at the edited rest shape are not distances to the truth
     # (both predictions push vertices into the sphere's contact layer: relative
     # residuals in the thousands for cm-level errors)
-    assert rms(alive.x, xT) < 1e-3 * e_gmls < e_still, (rms(alive.x, xT), e_gmls, e_still)
+    # alive: given DYN_ALIVE steps the dynamics reach an equilibrium of the edited
+    # strip, within 1 % of the edit's motion from Newton's (the strip over the
+    # frictionless sphere has more than one: with contact stiffness 100 mu kinetic
+    # settles 1.45 mm rms from Newton's, both at residual 1e-12)
+    assert alive.converged and alive.residual <= 1e-10, alive.diagnosis
+    assert rms(alive.x, xT) < 0.02 * e_still, (rms(alive.x, xT), e_gmls, e_still)
     assert np.isfinite(gm.error_estimate) and gm.residual_s > 0
 
     # the distance estimate (one chord-Newton correction) is computed; on this

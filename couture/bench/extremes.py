@@ -451,8 +451,9 @@ def run_case(
         solver = get_solver(spec["solver"])
         # friction from the first iteration, as the solver node solves a level from its
         # placement (couture.solvers.service.FRICTION_AT_ONCE)
-        opts = {"friction_after": math.inf} if hasattr(solver, "friction_after") else {}
-        res = solver.solve(model, x0, tol=float(spec["tol"]), max_seconds=float(spec["limit_s"]), **opts)
+        res = solver.solve(
+            model, x0, tol=float(spec["tol"]), max_seconds=float(spec["limit_s"]), friction_after=math.inf
+        )
     except Exception as e:  # noqa: BLE001 - a solver that raises has blown up; say how
         row.update(outcome="blew_up", diagnosis=f"exception: {type(e).__name__}: {e}", stop="exception")
         row["wall_s"] = time.perf_counter() - t1

@@ -44,7 +44,6 @@ measurement.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import platform
 import time
@@ -261,7 +260,9 @@ def reference(scene: Scene, seconds: float, log=print) -> dict:
     for tol in REFERENCE_TOLS:
         m = f.model_at(scene.d)
         t0 = time.perf_counter()
-        r = get_solver("newton").solve(m, f.x_eq.copy(), tol=tol, max_seconds=seconds, max_iters=5000, **AS_LIVE)
+        r = get_solver("newton").solve(
+            m, f.x_eq.copy(), tol=tol, max_seconds=seconds, max_iters=5000, friction_after=AS_LIVE
+        )
         s = time.perf_counter() - t0
         log(
             f"  reference newton tol {tol:.0e}: {'converged' if r.converged else 'NOT converged'} "
@@ -272,9 +273,10 @@ def reference(scene: Scene, seconds: float, log=print) -> dict:
     raise RuntimeError(f"{scene.name}: no reference: fine Newton did not converge even to {REFERENCE_TOLS[-1]}")
 
 
-AS_LIVE = {"friction_after": math.inf}
-"""a re-solve from the old drape keeps its friction anchors from the first iteration, as the
-solver node does for a warm start from its previous drape (couture.solvers.service)"""
+AS_LIVE = None
+"""a re-solve from the old drape keeps the solver's own friction schedule, as the solver node
+does for a warm start (couture.solvers.service.FRICTION_AT_ONCE: only a placement has friction
+at once)"""
 
 LINEAR_FRICTIONLESS = "linear_nofric"
 """diagnostic: the linear prediction from a frictionless linearisation (the node holds friction)"""
@@ -285,7 +287,9 @@ def half_sample(level: Level, d: np.ndarray, seconds: float):
     from couture.solvers import get_solver
 
     t0 = time.perf_counter()
-    r = get_solver("newton").solve(level.model_at(0.5 * d), level.x_eq.copy(), tol=1e-6, max_seconds=seconds, **AS_LIVE)
+    r = get_solver("newton").solve(
+        level.model_at(0.5 * d), level.x_eq.copy(), tol=1e-6, max_seconds=seconds, friction_after=AS_LIVE
+    )
     return r.x, time.perf_counter() - t0
 
 
@@ -381,8 +385,7 @@ def measure_scene(
                 def solve(L=L, solver=solver, tol=tol):
                     m = L.model_at(d)
                     t0 = time.perf_counter()
-                    opts = AS_LIVE if hasattr(solver, "friction_after") else {}
-                    r = solver.solve(m, L.x_eq.copy(), tol=tol, max_seconds=seconds, **opts)
+                    r = solver.solve(m, L.x_eq.copy(), tol=tol, max_seconds=seconds, friction_after=AS_LIVE)
                     return time.perf_counter() - t0, r
 
                 s, res = solve()

@@ -58,4 +58,9 @@ class Solver(Protocol):
         max_iters: int = 10_000,
         max_seconds: float = 60.0,
         callback: ProgressCallback | None = None,
-    ) -> SolveResult: ...
+        friction_after: float | None = None,
+    ) -> SolveResult:
+        """``friction_after``: for this solve, the relative residual below which friction
+        anchors act (math.inf: from the first iteration; None: the solver's own setting;
+        a solver without a friction schedule ignores it)."""
+        ...

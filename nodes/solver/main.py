@@ -32,6 +32,7 @@ the pool see each other in the node's own session and share the sessions out
 from __future__ import annotations
 
 import logging
+import math
 import os
 import threading
 from dataclasses import dataclass, field, replace
@@ -391,8 +392,15 @@ def serve(
             mesh = lm.mesh
         model = ClothModel(mesh, design.fabric, scene_from_design(design))
         x0 = req.x_warm.numpy() if req.x_warm is not None else mesh.x0
+        # friction from the first iteration from a placement, the solver's own schedule from a warm start,
+        # as this node solves its levels (couture.solvers.service.FRICTION_AT_ONCE)
         r = get_solver(config.solver, **solver_options(config)).solve(
-            model, np.array(x0), tol=req.tol, max_iters=req.max_iters, max_seconds=req.max_seconds
+            model,
+            np.array(x0),
+            tol=req.tol,
+            max_iters=req.max_iters,
+            max_seconds=req.max_seconds,
+            friction_after=math.inf if req.x_warm is None else None,
         )
         return SolveResultMsg(
             method=config.solver,
