@@ -550,9 +550,10 @@ def test_tryon_buttons_make_tryon_messages(ui):
     ui.tryon.click("Drag around -")
     ui.tryon.click("Drag down")
     ui.tryon.click("Move out")
+    ui.tryon.click("Rotate +")
     ui.tryon.click("Sew next seam")
     ui.tryon.click("Start sequential sewing")
-    assert [s["op"] for s in sent] == ["drag", "drag", "move", "sew", "start"]
+    assert [s["op"] for s in sent] == ["drag", "drag", "move", "rotate", "sew", "start"]
     msgs = [decode(encode(tryon_msg(s, generation=4)), TryOnMsg) for s in sent]
     assert msgs[0].panel == names[0] and msgs[0].angle == pytest.approx(-np.pi / 6)
     np.testing.assert_allclose(msgs[1].vector.numpy(), [0.0, -0.04, 0.0])
@@ -563,5 +564,8 @@ def test_tryon_buttons_make_tryon_messages(ui):
     c = ui.view3d.x[panel_vertices(ui.demo_mesh, names[0])].mean(axis=0) - TORSO_AXIS_POINT
     assert out[1] == 0.0 and np.linalg.norm(out) == pytest.approx(0.04)
     assert out[[0, 2]] @ c[[0, 2]] > 0
-    assert msgs[3].seam == -1 and msgs[4].sewn is False and all(m.generation == 4 for m in msgs)
+    # rotate: in the panel's plane, about the same outward direction
+    np.testing.assert_allclose(msgs[3].vector.numpy(), out)
+    assert msgs[3].angle == pytest.approx(np.pi / 6)
+    assert msgs[4].seam == -1 and msgs[5].sewn is False and all(m.generation == 4 for m in msgs)
     ui.on_tryon = None

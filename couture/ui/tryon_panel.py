@@ -37,8 +37,9 @@ class TryOnPanel:
                 ("Move out", lambda: self._panel_op("move", vector=self._outward())),
                 ("Move up", lambda: self._panel_op("move", vector=[0.0, self._step(), 0.0])),
                 ("Move down", lambda: self._panel_op("move", vector=[0.0, -self._step(), 0.0])),
-                ("Rotate +", lambda: self._panel_op("rotate", angle=self._angle(), vector=[0.0, 0.0, 1.0])),
-                ("Rotate -", lambda: self._panel_op("rotate", angle=-self._angle(), vector=[0.0, 0.0, 1.0])),
+                # in the panel's own plane: about its outward direction
+                ("Rotate +", lambda: self._panel_op("rotate", angle=self._angle(), vector=self._outward())),
+                ("Rotate -", lambda: self._panel_op("rotate", angle=-self._angle(), vector=self._outward())),
                 ("Drag around +", lambda: self._panel_op("drag", angle=self._angle())),
                 ("Drag around -", lambda: self._panel_op("drag", angle=-self._angle())),
                 ("Drag up", lambda: self._panel_op("drag", vector=[0.0, self._step(), 0.0])),
