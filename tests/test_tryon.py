@@ -228,8 +228,17 @@ def test_solver_service_applies_tryon_ops_to_both_levels(sdf):
         assert sdf.phi_grad(lm.x[v])[0].min() >= lm.model.contact_offset - 1e-6, level
     runs = s.run()
     assert all(r.result.converged and r.warm_start == "previous" for r in runs)
+    s.apply_tryon("fix", panel="gore0")
+    held = {level: lm.x.copy() for level, lm in s.levels.items()}
+    with pytest.raises(TryOnError, match="fixed; unfix it"):
+        s.apply_tryon("drag", panel="gore0", angle=0.2)
+    for level, lm in s.levels.items():  # a failed op changes nothing
+        np.testing.assert_array_equal(lm.x, held[level])
+        assert s.tryon[level].fixed == {0}
+    assert s.tryon_op_id == ""
     s.apply_tryon("start", sewn=False)
     assert all(not lm.model.has_seams for lm in s.levels.values())
+    assert all(not s.tryon[level].fixed for level in s.levels)
     s.apply_tryon("sew", seam=2)
     for level, lm in s.levels.items():
         assert len(lm.model.seam_stencils) == len(s.tryon[level].groups[2]), level
