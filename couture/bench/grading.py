@@ -247,13 +247,13 @@ def _cm(v: float | None) -> str:
 
 def table(rows: list[SizeFit]) -> str:
     lines = [
-        f"{'body':7s} {'n':>5s} {'ease cm bust/waist/hip':>22s} {'strain max':>10s} {'p95':>6s} "
+        f"{'body':7s} {'n':>5s} {'top-waist cm':>12s} {'ease cm bust/waist/hip':>22s} {'strain max':>10s} {'p95':>6s} "
         f"{'p mean/max Pa':>14s} {'contact':>7s} {'residual':>9s} conv"
     ]
     for r in rows:
         e = r.ease
         lines.append(
-            f"{r.body:7s} {r.vertices:5d} {_cm(e['bust'])} / {_cm(e['waist'])} / {_cm(e['hip'])}  "
+            f"{r.body:7s} {r.vertices:5d} {_cm(r.top_y - r.landmark_y['waist']):>12s} {_cm(e['bust'])} / {_cm(e['waist'])} / {_cm(e['hip'])}  "
             f"{r.strain_max:10.3f} {r.strain_p95:6.3f} {r.pressure_mean:6.1f}/{r.pressure_max:<7.1f} "
             f"{r.contact_fraction:7.2f} {r.residual:9.1e} {r.converged}"
         )
