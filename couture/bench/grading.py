@@ -217,7 +217,10 @@ def fit(design, body: str, level: str = "coarse", method: str = "newton", max_se
     girths, heights = body_landmarks(body)
     centres = body_centres(body, heights)
     garment = {k: girth_at(x, mesh.tris, heights[k], centres[k]) for k in LANDMARKS}
-    ease = {k: (None if garment[k] is None else garment[k] - girths[k]) for k in LANDMARKS}
+    ease: dict[str, float | None] = {}
+    for k in LANDMARKS:
+        g = garment[k]
+        ease[k] = None if g is None else g - girths[k]
     return SizeFit(
         body=body,
         vertices=mesh.n_vertices,
