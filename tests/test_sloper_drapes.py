@@ -16,10 +16,13 @@ from couture.bench.drape_slopers import INSIDE_LIMIT, SLID_LIMIT, drape
 pytestmark = pytest.mark.slow
 
 
-# The trousers' waistband (2 cm ease on the default 20 N/m fabric) slides
-# 12.7 cm down to the upper hip before it holds (measured at 400 vertices):
-# past the 10 cm criterion, so their bound is stated apart (see the issue note).
-SLID = {"trousers": 0.15}
+# The trousers hang from an elastic waistband (the sloper's ``waistband``
+# option, default 0.8: the waist edge cut to 80 % of waist + ease). It settles
+# 3.8-4.1 cm below its placed top at 400 vertices, both solvers (without the
+# elastic they slid 10.7-11.6 cm to the upper hip): friction carries < 1 % of
+# the weight there, the body's waist-to-hip slope the rest (see the issue
+# note), so their bound is stated apart, with about 1 cm of margin.
+SLID = {"trousers": 0.05}
 
 
 @pytest.mark.parametrize("kind", ["skirt", "dress", "shirt", "trousers"])

@@ -72,14 +72,20 @@ def coarse_mesh(kind: str, vertices: int, params: dict | None = None):
 
 
 def drape(
-    kind: str, vertices: int = 1600, solvers=("newton", "kinetic"), max_seconds: float = 60.0, tol: float = 1e-4
+    kind: str,
+    vertices: int = 1600,
+    solvers=("newton", "kinetic"),
+    max_seconds: float = 60.0,
+    tol: float = 1e-4,
+    params: dict | None = None,
 ) -> tuple[DrapeRow, np.ndarray, object]:
-    """Drape one sloper; returns the best row (lowest residual), its x and the mesh."""
+    """Drape one sloper (its default options, overridden by ``params``); returns
+    the best row (lowest residual), its x and the mesh."""
     from couture.cloth.body import load_mannequin_sdf
     from couture.cloth.model import ClothModel, Scene
     from couture.solvers import get_solver
 
-    design, _, res = coarse_mesh(kind, vertices)
+    design, _, res = coarse_mesh(kind, vertices, params)
     mesh = res.mesh
     sdf = load_mannequin_sdf(verbose=False)
     model = ClothModel(mesh, design.fabric, Scene(body=sdf, friction=True))

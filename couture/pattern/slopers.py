@@ -406,6 +406,14 @@ TROUSERS_OPTIONS = (
     O.ANKLE,
     opt("length", 0.95, 0.40, 1.10, "m", "waist to hem along the side seam"),
     opt("waist_ease", 0.02, 0.0, 0.10, "m", "added to the waist girth"),
+    opt(
+        "waistband",
+        0.80,
+        0.60,
+        1.00,
+        "1",
+        "elastic waistband: the waist edge's rest length as a fraction of waist girth + ease (1: none)",
+    ),
     opt("hip_ease", 0.05, 0.0, 0.15, "m", "added to the hip girth"),
     opt("hem_ease", 0.10, 0.0, 0.40, "m", "added to the ankle girth at the hem"),
     opt("crotch_extension", 0.05, 0.02, 0.10, "m", "how far the crotch point reaches past the centre line"),
@@ -415,9 +423,17 @@ TROUSERS_OPTIONS = (
 def draft_trousers(p: dict[str, float]) -> SloperDraft:
     """Trousers: front and back panel per leg. Each panel: material x grows from
     the centre (crotch) edge to the side seam for the left leg (mirrored for
-    the right leg so every outline stays counter-clockwise)."""
+    the right leg so every outline stays counter-clockwise).
+
+    The waist edge is an elastic waistband: its rest length is ``waistband``
+    times the waist girth + ease, shorter than the body's waist, so it stays
+    stretched around the waist and its hoop tension presses the garment onto
+    the body (the way an elastic is cut shorter than the waist it grips). The
+    sides run from it to the hip width, so the grip fades toward the hip. With
+    no elastic (``waistband`` 1) the default 20 N/m fabric cannot carry the
+    trousers' weight at the waist and they slide down to the upper hip."""
     h, cd, L = p["waist_to_hip"], p["crotch_depth"], p["length"]
-    ww = (p["waist_girth"] + p["waist_ease"]) / 4
+    ww = p["waistband"] * (p["waist_girth"] + p["waist_ease"]) / 4
     wh = (p["hip_girth"] + p["hip_ease"]) / 4
     ext = p["crotch_extension"]
     hem_w = (p["ankle_girth"] + p["hem_ease"]) / 2
