@@ -320,7 +320,9 @@ def test_a_physics_change_fails_naming_the_worst_vertex(tmp_path):
     assert "drape/fine generation" in fine.failures[0] and "worst vertex" in fine.failures[0], fine.failures[0]
     assert "mm > bound" in fine.failures[0]
     assert all(r.deviation_m > 2 * r.bound_m for r in fine.drapes), report.text()
-    assert all(min(r.cross_residual or (0.0,)) > 100 * 1e-6 for r in fine.drapes), report.text()
+    # a deviation beyond the bound is checked for separate equilibria of the same physics:
+    # a changed physics balances neither side's model
+    assert all(r.cross_residual is not None and min(r.cross_residual) > 100 * 1e-6 for r in fine.drapes), report.text()
 
 
 @pytest.mark.slow

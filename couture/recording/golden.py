@@ -415,7 +415,7 @@ def polisher(recordings: dict[str, Path | str]):
             x = drape.x.numpy().astype(np.float64)
             if x.shape == model.mesh.x0.shape:
                 r = get_solver("newton").solve(
-                    model, x, tol=POLISH_TOL, max_iters=200, max_seconds=60.0, friction_after=math.inf
+                    model, x, tol=POLISH_TOL, max_iters=200, max_seconds=600.0, friction_after=math.inf
                 )
                 if r.converged:
                     out = (r.x, float(r.residual), model)
