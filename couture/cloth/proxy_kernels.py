@@ -69,6 +69,24 @@ def ellipsoid_closest(y, a, x):
 
 
 @njit(cache=True, inline="always")
+def _world_normal(x, k, rot, radii):
+    """Outward unit normal of ellipsoid k at its surface point x (local frame):
+    proportional to x / a², turned back to world axes."""
+    n0 = x[0] / (radii[k, 0] ** 2)
+    n1 = x[1] / (radii[k, 1] ** 2)
+    n2 = x[2] / (radii[k, 2] ** 2)
+    nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    n0 /= nn
+    n1 /= nn
+    n2 /= nn
+    return (
+        rot[k, 0, 0] * n0 + rot[k, 0, 1] * n1 + rot[k, 0, 2] * n2,
+        rot[k, 1, 0] * n0 + rot[k, 1, 1] * n1 + rot[k, 1, 2] * n2,
+        rot[k, 2, 0] * n0 + rot[k, 2, 1] * n1 + rot[k, 2, 2] * n2,
+    )
+
+
+@njit(cache=True, inline="always")
 def _merge(best, g0, g1, g2, d, x, k, rot, radii, blend):
     """Fold ellipsoid k (signed distance d, closest point x) into the running
     minimum (best, its gradient g): the exact min for blend = 0, else the
@@ -79,17 +97,7 @@ def _merge(best, g0, g1, g2, d, x, k, rot, radii, blend):
     nearest)."""
     if d >= best + blend:
         return best, g0, g1, g2, False
-    # outward normal at x: ∝ x / a², back to world
-    n0 = x[0] / (radii[k, 0] ** 2)
-    n1 = x[1] / (radii[k, 1] ** 2)
-    n2 = x[2] / (radii[k, 2] ** 2)
-    nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-    n0 /= nn
-    n1 /= nn
-    n2 /= nn
-    w0 = rot[k, 0, 0] * n0 + rot[k, 0, 1] * n1 + rot[k, 0, 2] * n2
-    w1 = rot[k, 1, 0] * n0 + rot[k, 1, 1] * n1 + rot[k, 1, 2] * n2
-    w2 = rot[k, 2, 0] * n0 + rot[k, 2, 1] * n1 + rot[k, 2, 2] * n2
+    w0, w1, w2 = _world_normal(x, k, rot, radii)
     if best - d >= blend:  # k wins outright (always, for blend = 0 and d < best)
         return d, w0, w1, w2, True
     h = (blend - abs(best - d)) / blend
@@ -145,17 +153,7 @@ def union_phi_grad(points, centers, rot, radii, rmax, phi, grad, which):
             if d < best:
                 best = d
                 bk = k
-                # outward normal at x: ∝ x / a², back to world
-                n0 = x[0] / (radii[k, 0] ** 2)
-                n1 = x[1] / (radii[k, 1] ** 2)
-                n2 = x[2] / (radii[k, 2] ** 2)
-                nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-                n0 /= nn
-                n1 /= nn
-                n2 /= nn
-                g0 = rot[k, 0, 0] * n0 + rot[k, 0, 1] * n1 + rot[k, 0, 2] * n2
-                g1 = rot[k, 1, 0] * n0 + rot[k, 1, 1] * n1 + rot[k, 1, 2] * n2
-                g2 = rot[k, 2, 0] * n0 + rot[k, 2, 1] * n1 + rot[k, 2, 2] * n2
+                g0, g1, g2 = _world_normal(x, k, rot, radii)
         phi[n] = best
         grad[n, 0] = g0
         grad[n, 1] = g1
