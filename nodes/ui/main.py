@@ -434,10 +434,13 @@ def edit_msg(edit: Edit, generation: int) -> EditMsg:
 
 def main(config: Config) -> None:
     ui = CoutureUI(UIConfig(host=config.host, port=config.port, export_dir=config.export_dir), design=config.design)
-    with Node(config.name, config.bus, kind="ui") as node:
+    # seen as live only once it listens: a client that waits for the ui and then
+    # publishes a design must not race its subscriptions (a restarted ui missed it)
+    with Node(config.name, config.bus, kind="ui", announce=False) as node:
         url = ui.start()
         try:
             adapter = UIAdapter(node, ui, config.name, bus_config=config.bus, record_dir=config.record_dir)
+            node.announce()
             log.info("couture UI at %s (3D %s, pattern %s)", url, ui.url3d, ui.url2d)
             print(f"couture UI: {url}", flush=True)
             # a session already under way (the pattern topic keeps its last
