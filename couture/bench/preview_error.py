@@ -66,6 +66,7 @@ def run(
     from couture.sensitivity import Predictor
     from couture.sensitivity.predictor import default_model_at
     from couture.solvers import get_solver
+    from couture.solvers.service import carries_anchors
 
     design, res, model, x = drape(kind, vertices, tol)
     solver_state = model.friction_state()
@@ -94,7 +95,9 @@ def run(
                 truth_model.set_friction_state(solver_state)
                 t1 = time.perf_counter()
                 newton = get_solver("newton", friction_after=friction_after, friction_every=friction_every)
-                r = newton.solve(truth_model, pred.x.copy(), tol=tol, max_seconds=60)
+                # as the solver node: a model carrying its drape's anchors keeps them (a warm start)
+                at_once = math.inf if carries_anchors(truth_model) else None
+                r = newton.solve(truth_model, pred.x.copy(), tol=tol, max_seconds=60, friction_after=at_once)
                 solve_s = time.perf_counter() - t1
                 true = float(np.max(np.linalg.norm(pred.x - r.x, axis=1)))
                 bare_err = float(np.max(np.linalg.norm(q.drag(d, error_estimate=False).x - r.x, axis=1)))
