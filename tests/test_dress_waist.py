@@ -197,3 +197,15 @@ def test_option_jacobians_match_finite_differences_on_a_graded_body():
     # the edit starts from the body's value, not the mannequin's
     edited = apply_edit(d, "param:waist_girth", np.array([0.01, 0.0]))
     assert edited.sloper.params["waist_girth"] == pytest.approx(_measured("XL")["waist_girth"] + 0.01, abs=1e-9)
+
+
+def test_option_values_shown_are_the_bodys():
+    """What an option control shows: the body's measurement for a body-fitted
+    sloper (unless the design sets it), the design's params alone otherwise."""
+    from couture.pattern.draft import option_values
+
+    xl = _measured("XL")
+    v = option_values(_design("XL", {"hip_girth": 1.10}))
+    assert v["waist_girth"] == xl["waist_girth"] and v["hip_girth"] == 1.10
+    assert option_values(_design("default")) == {}
+    assert option_values(Design(sloper=Sloper(kind="dress"), body=Body(name="XL"))) == {}

@@ -217,12 +217,7 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
 
     check_body(design.body.name)  # placement reads the body's sections
     sd = sloper_of(design)
-    given = design.sloper.params
-    waist_y = None
-    if sd.body_fitted:  # the body's measurements, unless the design sets them
-        measured, waist_y = body_options(design.body.name)
-        names = {o.name for o in sd.options}
-        given = {**{k: v for k, v in measured.items() if k in names}, **given}
+    given, waist_y = _given(design)
     params = resolve(sd.options, given)
     topo = tuple(sorted((o.name, params[o.name]) for o in sd.options if o.integer))
     sloper = sd.draft(params)
@@ -431,6 +426,24 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
         ctx.seam_owner[i] = owner
         _orient(pattern, sp, owner)
     return pattern, ctx
+
+
+def _given(design: Design) -> tuple[dict, float | None]:
+    """(option values the design gives, its body's waist height or None): its
+    own params over, for a body-fitted sloper, its body's measurements."""
+    sd = sloper_of(design)
+    if not sd.body_fitted:
+        return dict(design.sloper.params), None
+    measured, waist_y = body_options(design.body.name)
+    names = {o.name for o in sd.options}
+    return {**{k: v for k, v in measured.items() if k in names}, **design.sloper.params}, waist_y
+
+
+def option_values(design: Design) -> dict:
+    """The option values a design gives (the rest take their defaults): its
+    sloper params, over its body's measured values for a body-fitted sloper
+    (what an option control shows)."""
+    return _given(design)[0]
 
 
 def _has(panel: Panel, name: str) -> bool:
