@@ -569,3 +569,22 @@ def test_tryon_buttons_make_tryon_messages(ui):
     assert msgs[3].angle == pytest.approx(np.pi / 6)
     assert msgs[4].seam == -1 and msgs[5].sewn is False and all(m.generation == 4 for m in msgs)
     ui.on_tryon = None
+
+
+def test_body_fitted_sloper_sliders_show_the_bodys_measurements(ui):
+    """A waist-seamed dress on XL drafts from XL's measured girths: the option
+    sliders show them (not the mannequin's defaults), and a design's own value wins."""
+    from couture import bodies
+    from schemas.design import Body, Design, Sloper
+
+    before = ui.design
+    xl = next(r for r in bodies.table() if r["name"] == "XL")["measured"]
+    try:
+        d = Design(sloper=Sloper(kind="dress_waist", params={"hip_girth": 1.2}), body=Body(name="XL"))
+        ui.controls.show_design(d)
+        step = ui.controls.params["waist_girth"].step
+        assert float(ui.controls.params["waist_girth"].value) == pytest.approx(xl["waist_girth"], abs=step)
+        assert float(ui.controls.params["bust_girth"].value) == pytest.approx(xl["bust_girth"], abs=step)
+        assert float(ui.controls.params["hip_girth"].value) == pytest.approx(1.2, abs=step)
+    finally:
+        ui.controls.show_design(before)

@@ -8,6 +8,12 @@ each, holes ``HOLE_SAMPLES``). So for one design (sloper kind, integer
 options, stroke list) the number of polyline vertices never depends on
 option or stroke *values*; only positions move, smoothly.
 
+Body-fitted slopers (``SloperDef.body_fitted``, e.g. ``dress_waist``): the
+body-measurement options the design does not set take the design's body's
+measured values (:func:`couture.pattern.options.body_options`) and the
+sloper's rings hang at that body's measured waist height; other slopers draft
+from the mannequin's measurements on any body.
+
 Strokes (``Stroke.kind`` and ``params``):
 
 - ``curve`` on panel P: ``{"segment": name, "points": [[s, dn], ...]}``:
@@ -35,10 +41,11 @@ from functools import lru_cache
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from couture.pattern import mannequin as M
 from couture.pattern.drafted import DraftedPattern, Panel, SeamSpec, Segment
 from couture.pattern.errors import PatternError
 from couture.pattern.geometry import Curve
-from couture.pattern.options import resolve
+from couture.pattern.options import body_options, resolve
 from couture.pattern.placement import fit_ring, place
 from couture.pattern.slopers import SLOPERS, SloperDraft
 from schemas.design import Design, Stroke
@@ -210,9 +217,13 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
 
     check_body(design.body.name)  # placement reads the body's sections
     sd = sloper_of(design)
-    params = resolve(sd.options, design.sloper.params)
+    given, waist_y = _given(design)
+    params = resolve(sd.options, given)
     topo = tuple(sorted((o.name, params[o.name]) for o in sd.options if o.integer))
     sloper = sd.draft(params)
+    if waist_y is not None:  # hang the rings at the body's own waist height
+        for ring in sloper.rings:
+            ring.origin = np.asarray(ring.origin, float) + np.array([0.0, waist_y - M.WAIST_Y, 0.0])
     counts = _counts(design.sloper.kind, topo, spacing)
     ctx = DraftContext(params, sloper)
     for pd in sloper.panels:
@@ -415,6 +426,24 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
         ctx.seam_owner[i] = owner
         _orient(pattern, sp, owner)
     return pattern, ctx
+
+
+def _given(design: Design) -> tuple[dict, float | None]:
+    """(option values the design gives, its body's waist height or None): its
+    own params over, for a body-fitted sloper, its body's measurements."""
+    sd = sloper_of(design)
+    if not sd.body_fitted:
+        return dict(design.sloper.params), None
+    measured, waist_y = body_options(design.body.name)
+    names = {o.name for o in sd.options}
+    return {**{k: v for k, v in measured.items() if k in names}, **design.sloper.params}, waist_y
+
+
+def option_values(design: Design) -> dict:
+    """The option values a design gives (the rest take their defaults): its
+    sloper params, over its body's measured values for a body-fitted sloper
+    (what an option control shows)."""
+    return _given(design)[0]
 
 
 def _has(panel: Panel, name: str) -> bool:

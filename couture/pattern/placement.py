@@ -211,6 +211,8 @@ def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str,
         dy = np.diff(ys)
         dh = np.sqrt(np.maximum(dy**2 - np.diff(rbar) ** 2, (0.5 * dy) ** 2))
         axial = y_hi - np.concatenate([np.cumsum(dh[::-1])[::-1], [0.0]])
+        if getattr(ring, "anchor_y", None) is not None:  # that row keeps its height instead of the top
+            axial = axial + ring.anchor_y - float(np.interp(ring.anchor_y, ys, axial))
 
     x0 = np.zeros((len(ring.panels), n_rows))
     n = len(ring.panels)

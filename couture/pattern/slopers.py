@@ -62,6 +62,10 @@ class Ring:
     gap_at: float | None = None
     """[rad] where the ring stays open (a trouser leg's half ring above the
     crotch); None: a closed ring, any shortfall shared by its seams"""
+    anchor_y: float | None = None
+    """material y placed at its own axial coordinate (the rows above and below
+    it shorten toward it along the axis, keeping their meridian lengths); None:
+    the top of the ring's panels"""
 
 
 @dataclass
@@ -89,13 +93,23 @@ class SloperDef:
     options: tuple[Option, ...]
     draft: Callable[[dict[str, float]], SloperDraft]
     doc: str
+    body_fitted: bool = False
+    """the body-measurement options default to the design's body's measured
+    values (:func:`couture.pattern.options.body_options`) and the torso rings
+    hang at its measured waist height; False: the mannequin's, whatever body"""
 
 
-def _mirror_panel(name: str, right: list[SegDef], top: SegDef | None, bottom: SegDef | None) -> PanelDef:
+def _mirror_panel(
+    name: str,
+    right: list[SegDef],
+    top: SegDef | list[SegDef] | None,
+    bottom: SegDef | list[SegDef] | None,
+) -> PanelDef:
     """A panel symmetric about x = 0 from its right half.
 
     ``right``: the right-side segments, bottom to top (CCW order on the right);
-    ``top``/``bottom``: full-width segments crossing x = 0 (given whole).
+    ``top``/``bottom``: full-width segments crossing x = 0 (given whole; a
+    list: consecutive pieces, in CCW order).
     Left segments are the mirrored right ones, renamed ``*_right -> *_left``.
     """
 
@@ -105,10 +119,10 @@ def _mirror_panel(name: str, right: list[SegDef], top: SegDef | None, bottom: Se
 
     segs = []
     if bottom is not None:
-        segs.append(bottom)
+        segs.extend(bottom if isinstance(bottom, list) else [bottom])
     segs.extend(right)
     if top is not None:
-        segs.append(top)
+        segs.extend(top if isinstance(top, list) else [top])
     segs.extend(mirror(s) for s in reversed(right))
     return PanelDef(name, segs)
 
@@ -291,6 +305,152 @@ def draft_dress(p: dict[str, float]) -> SloperDraft:
             )
     ring = Ring(["front", "back"], [0.0, np.pi], np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z]), section="torso")
     return SloperDraft(panels, seams, [ring], darts)
+
+
+# ---------------------------------------------------------------- waist-seamed dress
+
+DRESS_WAIST_OPTIONS = (
+    O.BUST,
+    O.WAIST,
+    O.HIP,
+    O.WAIST_TO_HIP,
+    O.WAIST_TO_UNDERARM,
+    O.WAIST_TO_SHOULDER,
+    O.SHOULDER_WIDTH,
+    O.NECK_GIRTH,
+    opt("length", 0.55, 0.38, 1.00, "m", "waist to hem (the skirt)"),
+    opt("flare", 0.06, 0.0, 0.40, "rad", "skirt side seam angle below the hip"),
+    opt("bust_ease", 0.06, 0.0, 0.20, "m", "added to the bust girth"),
+    opt("waist_ease", 0.03, 0.0, 0.15, "m", "added to the waist girth (bodice and skirt waist, darts closed)"),
+    opt("hip_ease", 0.05, 0.0, 0.15, "m", "added to the hip girth"),
+    opt(
+        "bodice_dart_share",
+        0.5,
+        0.1,
+        0.9,
+        "1",
+        "share of the bodice's bust-to-waist reduction taken by its 4 waist darts (the side seams take the rest)",
+    ),
+    opt(
+        "skirt_dart_share",
+        0.4,
+        0.1,
+        0.9,
+        "1",
+        "share of the skirt's hip-to-waist reduction taken by its 4 waist darts (the side seams take the rest)",
+    ),
+    opt("bodice_dart_length", 0.11, 0.05, 0.16, "m", "bodice waist dart: waist to its point (below the bust)"),
+    opt("skirt_dart_length", 0.10, 0.05, 0.14, "m", "skirt waist dart: waist to its point (above the hip)"),
+    opt("bust_dart_width", 0.015, 0.0, 0.04, "m", "width of the front armhole bust darts"),
+    opt("front_neck_depth", 0.07, 0.01, 0.20, "m", "front neckline drop below the neck point"),
+)
+
+DART_MIN_WIDTH = 0.005
+"""[m] narrowest waist dart (a body whose waist is not smaller than its bust or hip)"""
+
+
+def waist_dart_widths(p: dict[str, float]) -> tuple[float, float, float]:
+    """(bodice dart width, skirt dart width, waist girth with ease) [m] of the
+    waist-seamed dress: each of the 4 darts of a tier takes a quarter of its
+    share of that tier's girth reduction to the waist (bust - waist for the
+    bodice, hip - waist for the skirt), at least ``DART_MIN_WIDTH``."""
+    w = p["waist_girth"] + p["waist_ease"]
+    dwb = max(p["bodice_dart_share"] * (p["bust_girth"] + p["bust_ease"] - w) / 4, DART_MIN_WIDTH)
+    dws = max(p["skirt_dart_share"] * (p["hip_girth"] + p["hip_ease"] - w) / 4, DART_MIN_WIDTH)
+    return dwb, dws, w
+
+
+def _waist_edge(a: float, c: float, dw: float, depth: float, ids: tuple[str, str], reverse: bool) -> list[SegDef]:
+    """A panel's waist edge at y = 0 from x = -a to x = a (``reverse``: a to -a),
+    as pieces ``waist_left``, ``waist_center``, ``waist_right`` with a dart of
+    width ``dw`` centred at x = -c and x = c between them (``ids``: left, right
+    dart), its point ``depth`` away along +y (negative: down). Each dart's legs
+    are the segments ``dart:<id>:left`` (the first along the edge) and
+    ``dart:<id>:right``, named as :mod:`couture.pattern.draft` names a stroke dart's."""
+    xs = [-a, -c - dw / 2, -c, -c + dw / 2, c - dw / 2, c, c + dw / 2, a]
+    P = [np.array([x, 0.0]) for x in xs]
+    P[2] = np.array([-c, depth])
+    P[5] = np.array([c, depth])
+    names = [
+        "waist_left",
+        f"dart:{ids[0]}:left",
+        f"dart:{ids[0]}:right",
+        "waist_center",
+        f"dart:{ids[1]}:left",
+        f"dart:{ids[1]}:right",
+        "waist_right",
+    ]
+    if reverse:
+        P = P[::-1]
+        names = ["waist_right", f"dart:{ids[1]}:left", f"dart:{ids[1]}:right", "waist_center"]
+        names += [f"dart:{ids[0]}:left", f"dart:{ids[0]}:right", "waist_left"]
+    return [SegDef(n, [line(P[i], P[i + 1])]) for i, n in enumerate(names)]
+
+
+def draft_dress_waist(p: dict[str, float]) -> SloperDraft:
+    """Dress with a waist seam: bodice front and back (waist darts, front
+    armhole bust darts; side and shoulder seams) sewn at the waist to skirt
+    front and back (waist darts; side seams). Each tier's waist darts take a
+    share of its girth reduction to the waist (``bodice_dart_share``,
+    ``skirt_dart_share``); the darts of bodice and skirt sit one above the
+    other and the waist is sewn piece by piece (side to dart, dart to dart),
+    so with the darts closed both sides of every waist seam have the same
+    length and the waist measures waist girth + ease. Drafted from the body's
+    measurements: the design's body's measured girths and lengths by default
+    (``body_fitted``)."""
+    dwb, dws, w = waist_dart_widths(p)
+    # dart centres at the waist: near the bust points (about 0.105 bust girth from the centre line)
+    c_b = 0.105 * p["bust_girth"]
+    c_s = c_b + (dws - dwb) / 2  # skirt centre piece as long as the bodice's
+    a_b, a_s = w / 4 + dwb, w / 4 + dws  # panel half-widths at the waist, darts open
+    bw = (p["bust_girth"] + p["bust_ease"]) / 2
+    wh = (p["hip_girth"] + p["hip_ease"]) / 2
+    panels, darts, seams = [], [], []
+    for side_name, depth in (("front", p["front_neck_depth"]), ("back", 0.02)):
+        bodice, skirt = f"bodice_{side_name}", f"skirt_{side_name}"
+        ids_b = (f"{bodice}.waist_dart_l", f"{bodice}.waist_dart_r")
+        ids_s = (f"{skirt}.waist_dart_l", f"{skirt}.waist_dart_r")
+        right, neck = _bodice_right(p, 2 * a_b, bw, depth, [], None)
+        waist_b = _waist_edge(a_b, c_b, dwb, p["bodice_dart_length"], ids_b, reverse=False)
+        panels.append(_mirror_panel(bodice, right, neck, waist_b))
+        side, C, k, f = _skirt_side(2 * a_s, wh, p["waist_to_hip"], p["length"], p["flare"])
+        waist_s = _waist_edge(a_s, c_s, dws, -p["skirt_dart_length"], ids_s, reverse=True)
+        panels.append(_mirror_panel(skirt, [SegDef("side_right", side)], waist_s, _hem(C, k, f)))
+        seams += [(bodice, piece, skirt, piece) for piece in ("waist_left", "waist_center", "waist_right")]
+        seams += [
+            (n, f"dart:{i}:left", n, f"dart:{i}:right") for n, ids in ((bodice, ids_b), (skirt, ids_s)) for i in ids
+        ]
+    for tier in ("bodice", "skirt"):
+        seams += [
+            (f"{tier}_front", "side_right", f"{tier}_back", "side_left"),
+            (f"{tier}_back", "side_right", f"{tier}_front", "side_left"),
+        ]
+    seams += [
+        ("bodice_front", "shoulder_right", "bodice_back", "shoulder_left"),
+        ("bodice_back", "shoulder_right", "bodice_front", "shoulder_left"),
+    ]
+    if p["bust_dart_width"] > 0:
+        for s in ("left", "right"):
+            darts.append(
+                BuiltinDart(
+                    f"bodice_front.bust_dart_{s}",
+                    "bodice_front",
+                    "boundary",
+                    {
+                        "segment": f"armhole_{s}",
+                        "position": 0.35,
+                        "width": p["bust_dart_width"],
+                        "length": 0.3 * (p["waist_to_shoulder"] - p["waist_to_underarm"]),
+                    },
+                )
+            )
+    origin = np.array([0.0, M.WAIST_Y, M.TORSO_AXIS_Z])
+    # both tiers hang from the waist line (y = 0), so their waist edges start together
+    rings = [
+        Ring([f"{tier}_front", f"{tier}_back"], [0.0, np.pi], origin.copy(), section="torso", anchor_y=0.0)
+        for tier in ("bodice", "skirt")
+    ]
+    return SloperDraft(panels, seams, rings, darts)
 
 
 # ---------------------------------------------------------------- shirt
@@ -540,6 +700,9 @@ def _leg_body_radius(ym):
 SLOPERS: dict[str, SloperDef] = {
     "skirt": SloperDef("skirt", SKIRT_OPTIONS, draft_skirt, draft_skirt.__doc__ or ""),
     "dress": SloperDef("dress", DRESS_OPTIONS, draft_dress, draft_dress.__doc__ or ""),
+    "dress_waist": SloperDef(
+        "dress_waist", DRESS_WAIST_OPTIONS, draft_dress_waist, draft_dress_waist.__doc__ or "", body_fitted=True
+    ),
     "shirt": SloperDef("shirt", SHIRT_OPTIONS, draft_shirt, draft_shirt.__doc__ or ""),
     "trousers": SloperDef("trousers", TROUSERS_OPTIONS, draft_trousers, draft_trousers.__doc__ or ""),
 }

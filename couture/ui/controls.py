@@ -87,9 +87,10 @@ class Controls:
         if self.sloper.value != d.sloper.kind and d.sloper.kind in self.sloper.options:
             self.sloper.value = d.sloper.kind  # type: ignore[misc]  # viser has the setter; mypy misses it
             self._build_option_sliders(d)
+        given = _given_values(d)
         for name, h in self.params.items():
-            if name in d.sloper.params:
-                h.value = float(d.sloper.params[name])
+            if name in given:
+                h.value = float(given[name])
         if d.body.name in self.body.options:
             self.body.value = d.body.name  # type: ignore[misc]  # viser has the setter; mypy misses it
         f = d.fabric
@@ -122,9 +123,10 @@ class Controls:
             h.remove()
         self.params = {}
         opts = sloper_options(d.sloper.kind)
+        given = _given_values(d)
         with self._option_folder:
             for o in opts:
-                val = float(d.sloper.params.get(o.name, o.default))
+                val = float(given.get(o.name, o.default))
                 step = 1.0 if o.integer else nice_step(o.max - o.min)
                 label = f"{o.name} [{o.unit}]" if o.unit else o.name
                 h = self.gui.add_slider(label, o.min, o.max, step, min(max(val, o.min), o.max))
@@ -194,3 +196,16 @@ class Controls:
 
     def field_chosen(self) -> None:
         self.on_field(str(self.field.value))
+
+
+def _given_values(d: Design) -> dict[str, Any]:
+    """The option values the design gives: its params, over its body's
+    measurements for a body-fitted sloper (``couture.pattern.draft.option_values``);
+    its params alone where that fails (an unknown sloper or body)."""
+    from couture.pattern.draft import option_values
+    from couture.pattern.errors import PatternError
+
+    try:
+        return option_values(d)
+    except PatternError:
+        return dict(d.sloper.params)
