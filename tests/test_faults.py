@@ -42,6 +42,8 @@ from couture.client import Client
 from schemas import topics
 from schemas.design import Design, Resolution, Sloper
 from schemas.messages import (
+    AdjustMsg,
+    AdjustStatusMsg,
     DrapeMsg,
     EditMsg,
     Message,
@@ -159,6 +161,8 @@ def templates(client: Client) -> dict[str, Message]:
         SolveRequestMsg: SolveRequestMsg(request_id="fuzz"),
         SolveResultMsg: SolveResultMsg(request_id="fuzz"),
         TryOnMsg: TryOnMsg(op_id="fuzz", op="fix", panel="fuzz"),
+        AdjustMsg: AdjustMsg(request_id="fuzz", edit="hem", amount=-0.1, design=SMALL),
+        AdjustStatusMsg: AdjustStatusMsg(request_id="fuzz", state="failed", error="fuzz"),
     }
     return {t.key: by_type[t.msg_type] for t in topics.TOPICS}
 
