@@ -147,3 +147,56 @@ def test_hem_request_over_the_bus_moves_the_drapes_hem_toward_the_target(system)
     # and the waist stayed where it was (the garment was cut, not pulled up)
     assert abs(float(x_adj[:, 1].max()) - float(x_src[:, 1].max())) < 0.02
     print(f"adjust request to re-draped hem: {time.monotonic() - t0:.1f} s, hem rise {rise:.3f} m")
+
+
+def test_ui_adjust_folder_request_shows_progress_adopts_the_adjusted_design_and_undoes(system, tmp_path):
+    """The ui node's adapter (a real CoutureUI on the same bus): the Adjust
+    pattern folder's request runs on the adjust node, its progress reaches
+    the folder, the adjusted design becomes the UI's design, and undo
+    publishes the design before it."""
+    from couture.bus import Node
+    from couture.ui import CoutureUI, UIConfig
+    from nodes.ui.main import UIAdapter
+
+    sup, client, listen, _, _ = system
+    ui = CoutureUI(UIConfig(port=free_port(), export_dir=tmp_path, show_body=False, draft_locally=False))
+    ui.start()
+    try:
+        with Node("ui", sup.child_bus, kind="ui", install_signals=False) as node:
+            UIAdapter(node, ui, "ui")
+            # the session's newest design (the history of `pattern`) is adopted
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and not (ui.design.sloper.params and ui.view3d.x is not None):
+                time.sleep(0.1)
+            before = ui.design
+            length0 = before.sloper.params.get("length", 0.6)
+            assert ui.view3d.x is not None, "no drape reached the ui"
+            panel = ui.adjust
+            panel.loop.value = "hem"
+            panel.amount_cm.value = -5.0
+            deadline = time.monotonic() + 10  # the adapter has seen the adjust node's liveliness
+            while time.monotonic() < deadline and not node.bus.live_nodes(0.2).count("adjust"):
+                time.sleep(0.1)
+            assert panel.request() == ("hem", -0.05), panel.progress.content
+            seen: set[str] = set()
+            deadline = time.monotonic() + 90
+            while time.monotonic() < deadline and "**done**" not in panel.progress.content:
+                seen.add(panel.progress.content.split(":")[0])
+                assert "failed" not in panel.progress.content, panel.progress.content
+                time.sleep(0.05)
+            assert "**done**" in panel.progress.content, panel.progress.content
+            assert "iteration 1" in seen or "iteration 0" in seen, seen  # progress per iteration reached the folder
+            # the adjusted design (published by the adjust node) became the UI's design
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and ui.design.sloper.params.get("length", 0.6) > length0 - 0.02:
+                time.sleep(0.1)
+            assert ui.design.sloper.params["length"] < length0 - 0.02
+            assert not panel.undo.disabled
+            n = len(listen.patterns)
+            assert panel.undo_last() is before and ui.design is before
+            with listen.cond:
+                assert listen.cond.wait_for(
+                    lambda: any(p.source == "ui" and p.design == before for p in listen.patterns[n:]), 10
+                )
+    finally:
+        ui.stop()

@@ -56,7 +56,20 @@ class AdjustAdapter:
         self._queued: AdjustMsg | None = None
         self._asked = 0
         self.busy = False
+        self.live: dict[str, bool] = {}
+        """node name -> alive, from the liveliness tokens (a subscription: no query per request)"""
+        bus.watch_nodes(self.on_liveliness)
         bus.subscribe("adjust", self.on_request)
+
+    def on_liveliness(self, name: str, alive: bool) -> None:
+        self.live[name] = alive
+
+    def solvers(self) -> list[str]:
+        """The solver nodes to ask: the configured ones, else every live ``solver-*``."""
+        if self.config.solvers:
+            return list(self.config.solvers)
+        names = sorted(n for n, alive in self.live.items() if alive and n.startswith("solver"))
+        return names or sorted(n for n in self.node.bus.live_nodes(timeout=2.0) if n.startswith("solver"))
 
     # -- in (Zenoh thread: queue and return)
     def on_request(self, msg: AdjustMsg) -> None:
@@ -93,9 +106,7 @@ class AdjustAdapter:
         self.busy = True
         self.node.state = "busy"
         try:
-            names = list(self.config.solvers) or sorted(
-                n for n in self.node.bus.live_nodes(timeout=1.0) if n.startswith("solver")
-            )
+            names = self.solvers()
             if not names:
                 raise RuntimeError("no solver node is live in this session: nothing can simulate the adjusted patterns")
             vertices = req.vertices or self.config.vertices
