@@ -549,6 +549,10 @@ class AdjustStatusMsg(Message, kw_only=True):
     """done: the sloper options the fit changed, name -> new value (SI)"""
     fit_rms_m: float = float("nan")
     """done: [m] RMS distance between the published design's pattern outline and the adjusted pattern's"""
+    achieved_m: float = float("nan")
+    """done: [m] the change measured on the published design's own coarse
+    drape, in the request's terms (hem: length change, waist: girth change);
+    a design says only what its sloper options can, so it may fall short of ``amount``"""
 
 
 MESSAGE_TYPES: tuple[type[Message], ...] = (

@@ -135,6 +135,8 @@ def test_hem_request_over_the_bus_moves_the_drapes_hem_toward_the_target(system)
     assert [s.iteration for s in steps if s.state == "iteration"] == [0, 1]
     assert out.options["length"] < 0.6 - 0.05  # the skirt got shorter in its own option
     assert out.fit_rms_m < 0.03
+    # the node measured the published design's own drape: most of the 15 cm
+    assert -0.2 < out.achieved_m < -0.08, out.achieved_m
     published = [p for p in listen.patterns if p.design_id == out.design_id]
     assert published and published[0].source == "adjust"
     assert published[0].design.resolution == SMALL.resolution  # the design on screen, not the adjustment's mesh

@@ -167,6 +167,7 @@ def any_msgs(draw):
             hausdorff_pct=draw(finite),
             options={"length": draw(finite)},
             fit_rms_m=draw(finite),
+            achieved_m=draw(finite),
         )
     return SolveResultMsg(**h, request_id=draw(text), solver=draw(text), x=_arr(draw, (2, 3)), residual=draw(finite))
 

@@ -68,6 +68,7 @@ def project_to_design(
     X_adj: np.ndarray,
     *,
     vertices: int | None = None,
+    weights: np.ndarray | None = None,
     steps: int = 3,
     damping: float = 1e-4,
 ) -> Projection:
@@ -96,6 +97,10 @@ def project_to_design(
     vp = np.full(mesh.n_vertices, -1, np.int64)
     vp[mesh.tris.ravel()] = np.repeat(mesh.tri_panel, 3)
     panels = np.unique(vp[bnd])
+    w = np.ones(len(bnd)) if weights is None else np.asarray(weights, np.float64)[bnd]
+    if not (np.isfinite(w).all() and (w >= 0).all() and w.sum() > 0):
+        raise ValueError("fit weights must be finite, non-negative and not all zero")
+    sw = np.repeat(np.sqrt(w), 2)  # one row per coordinate
     service = RemeshService()
     service.set_design(_with_options(design, values), 1)
     X = service.levels["coarse"].mesh.X
@@ -122,8 +127,8 @@ def project_to_design(
             d = X[bnd][on] - c
             col[on] = np.column_stack([-d[:, 1], d[:, 0]])
             rigid.append(col.ravel())
-        A = np.column_stack([A_opt / scale, *rigid])  # options in fractions of their range
-        r = (target[bnd] - X[bnd]).ravel()
+        A = np.column_stack([A_opt / scale, *rigid]) * sw[:, None]  # options in fractions of their range
+        r = (target[bnd] - X[bnd]).ravel() * sw
         lam = damping * float(np.trace(A.T @ A)) / A.shape[1]
         reg = np.zeros(A.shape[1])
         reg[: len(opts)] = lam

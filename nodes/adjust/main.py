@@ -158,6 +158,7 @@ class AdjustAdapter:
             design_id=design_id,
             options={k: b for k, (_, b) in out.projection.changed.items()},
             fit_rms_m=out.projection.fit_rms_m,
+            achieved_m=out.achieved,
         )
 
     def close(self) -> None:
