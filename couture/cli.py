@@ -380,6 +380,14 @@ def _dispatch(args: argparse.Namespace) -> int:
         except ValueError as e:
             print(f"couture up: {e}", file=sys.stderr)
             return 2
+        if args.tls and any(n.name == "adjust" for n in nodes) and not (Path(args.tls) / "adjust.pem").exists():
+            # a secure directory made before the adjust node existed: run without it
+            nodes = [n for n in nodes if n.name != "adjust"]
+            print(
+                f"couture up: no certificate for the adjust node in {args.tls}: started without it "
+                f"(add it: couture certs --out {args.tls} --nodes adjust --writers adjust)",
+                file=sys.stderr,
+            )
         url = "" if no_ui else f"http://{args.ui_host}:{ui_port}/"
         return supervisor.main(supervisor.SupervisorConfig(bus=bus_config_from_args(args), nodes=nodes, ui_url=url))
 
