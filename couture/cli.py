@@ -40,6 +40,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     up.add_argument("--no-ui", action="store_true", help="do not start the web UI node")
     up.add_argument(
+        "--no-adjust", action="store_true", help="do not start the adjust node (the UI's Adjust pattern tool)"
+    )
+    up.add_argument(
         "--solver",
         nargs="+",
         default=["kinetic"],
@@ -51,7 +54,7 @@ def _parser() -> argparse.ArgumentParser:
         nargs="+",
         metavar="NODE",
         default=None,
-        help="start only these nodes (remesher, solver, sensitivity, ui, recorder) to split a session over "
+        help="start only these nodes (remesher, solver, sensitivity, adjust, ui, recorder) to split a session over "
         "machines: e.g. --only solver --connect tcp/<other machine>:7447 (see README, Several machines)",
     )
     up.add_argument("--ui-host", default="127.0.0.1")
@@ -365,13 +368,26 @@ def _dispatch(args: argparse.Namespace) -> int:
         try:
             nodes = supervisor.only_nodes(
                 supervisor.default_nodes(
-                    solvers=args.solver, ui=not args.no_ui, ui_host=args.ui_host, ui_port=ui_port, record=args.record
+                    solvers=args.solver,
+                    ui=not args.no_ui,
+                    ui_host=args.ui_host,
+                    ui_port=ui_port,
+                    record=args.record,
+                    adjust=not args.no_adjust,
                 ),
                 args.only,
             )
         except ValueError as e:
             print(f"couture up: {e}", file=sys.stderr)
             return 2
+        if args.tls and any(n.name == "adjust" for n in nodes) and not (Path(args.tls) / "adjust.pem").exists():
+            # a secure directory made before the adjust node existed: run without it
+            nodes = [n for n in nodes if n.name != "adjust"]
+            print(
+                f"couture up: no certificate for the adjust node in {args.tls}: started without it "
+                f"(add it: couture certs --out {args.tls} --nodes adjust --writers adjust)",
+                file=sys.stderr,
+            )
         url = "" if no_ui else f"http://{args.ui_host}:{ui_port}/"
         return supervisor.main(supervisor.SupervisorConfig(bus=bus_config_from_args(args), nodes=nodes, ui_url=url))
 

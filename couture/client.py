@@ -583,19 +583,59 @@ class Client:
         design: Design | None = None,
     ) -> SolveResultMsg:
         """Solve ``mesh`` to equilibrium on a solver node (any if solver is None)."""
-        mm = mesh if isinstance(mesh, MeshMsg) else mesh_to_msg(mesh)
-        req = SolveRequestMsg(
-            mesh=mm,
-            x_warm=as_array(warm_start, "float64"),
+        return solve_on(
+            self.bus,
+            mesh,
+            warm_start,
+            solver,
             tol=tol,
             max_iters=max_iters,
             max_seconds=max_seconds,
-            solver=solver or "",
+            timeout=timeout,
             design=design,
-            generation=mm.generation,
-            level=mm.level,
         )
-        return self.bus.solve(req, timeout=timeout if timeout is not None else max_seconds + 10.0)
+
+
+def solve_on(
+    bus: Bus,
+    mesh: GarmentMesh | MeshMsg,
+    warm_start: np.ndarray | None = None,
+    solver: str | None = None,
+    *,
+    tol: float = 1e-4,
+    max_iters: int = 10_000,
+    max_seconds: float = 60.0,
+    timeout: float | None = None,
+    design: Design | None = None,
+) -> SolveResultMsg:
+    """:meth:`Client.solve` on any open session (a node's own)."""
+    mm = mesh if isinstance(mesh, MeshMsg) else mesh_to_msg(mesh)
+    req = SolveRequestMsg(
+        mesh=mm,
+        x_warm=as_array(warm_start, "float64"),
+        tol=tol,
+        max_iters=max_iters,
+        max_seconds=max_seconds,
+        solver=solver or "",
+        design=design,
+        generation=mm.generation,
+        level=mm.level,
+    )
+    return bus.solve(req, timeout=timeout if timeout is not None else max_seconds + 10.0)
+
+
+class BusSolves:
+    """What :class:`SolveFanout` needs of a :class:`Client` (``solve``,
+    ``live_nodes``, ``cfg``), on a node's own open session."""
+
+    def __init__(self, bus: Bus) -> None:
+        self.bus, self.cfg = bus, bus.cfg
+
+    def live_nodes(self, timeout: float = 1.0) -> list[str]:
+        return self.bus.live_nodes(timeout=timeout)
+
+    def solve(self, mesh: GarmentMesh | MeshMsg, warm_start: np.ndarray | None = None, solver: str | None = None, **kw):
+        return solve_on(self.bus, mesh, warm_start, solver, **kw)
 
 
 class SolveFanout:
@@ -609,7 +649,7 @@ class SolveFanout:
 
     def __init__(
         self,
-        client: Client,
+        client: Client | BusSolves,
         mesh: GarmentMesh,
         design: Design,
         solvers: list[str] | None = None,

@@ -88,12 +88,17 @@ def default_nodes(
     ui_host: str = "127.0.0.1",
     ui_port: int = 8080,
     record: str | None = None,
+    adjust: bool = False,
 ) -> list[NodeSpec]:
-    """The standard set: remesher, one solver node per solver name, sensitivity, ui, recorder."""
+    """The standard set: remesher, one solver node per solver name, sensitivity,
+    the adjust node (pattern adjustment for direct 3D edits; ``couture up``
+    starts it, tests ask for it), ui, recorder."""
     nodes = [NodeSpec("remesher", "nodes.remesher")]
     for s in solvers or ["kinetic"]:
         nodes.append(NodeSpec(f"solver-{s}", "nodes.solver", ["--solver", s]))
     nodes.append(NodeSpec("sensitivity", "nodes.sensitivity"))
+    if adjust:
+        nodes.append(NodeSpec("adjust", "nodes.adjust"))
     if ui:
         nodes.append(NodeSpec("ui", "nodes.ui", ["--host", ui_host, "--port", str(ui_port)]))
     if record:
@@ -106,7 +111,7 @@ def default_nodes(
     return nodes
 
 
-NODE_KINDS = ("remesher", "solver", "sensitivity", "ui", "recorder")
+NODE_KINDS = ("remesher", "solver", "sensitivity", "adjust", "ui", "recorder")
 """what ``couture up --only`` selects by: a node's name, or a solver node's name before ``-``"""
 
 

@@ -10,6 +10,8 @@ from schemas.design import DESIGN_SCHEMA, Design
 from schemas.messages import (
     MESSAGE_TYPES,
     REGISTRY,
+    AdjustMsg,
+    AdjustStatusMsg,
     DrapeMsg,
     EditMsg,
     MeshMsg,
@@ -52,6 +54,8 @@ __all__ = [
     "SolveRequestMsg",
     "SolveResultMsg",
     "TryOnMsg",
+    "AdjustMsg",
+    "AdjustStatusMsg",
     "SchemaError",
     "encode",
     "decode",

@@ -466,6 +466,95 @@ class SolveResultMsg(Message, kw_only=True):
     """the request could not be run at all (bad mesh, unknown generation); x is None"""
 
 
+ADJUST_EDITS = ("hem", "waist")
+ADJUST_MAX_VERTICES = 5000
+"""the largest mesh an adjustment request may ask for (each iteration solves it)"""
+ADJUST_MAX_ITERS = 10
+
+
+class AdjustMsg(Message, kw_only=True):
+    """Adjust the pattern for a direct 3D edit of the drape (Bartle 2016,
+    ``couture.adjust``). ui, scripts -> adjust node, which turns the edit of
+    ``design``'s drape into a target garment, finds the pattern whose drape
+    reproduces it (its solves go to the solver nodes), fits the design's
+    sloper options to that pattern and publishes the result as a new
+    ``pattern``; its progress and outcome on ``adjust/status``. Key ``adjust``.
+
+    The header's ``generation`` is the design shown when the edit was made."""
+
+    TYPE: ClassVar[str] = "couture/adjust/v1"
+    schema: str = "couture/adjust/v1"
+    request_id: str = ""
+    """identifier of this request (its status messages carry it)"""
+    edit: Literal["hem", "waist"]
+    """'hem': the hem loop slides along the garment (length);
+    'waist': the loop at the waist is offset from the body (fit)"""
+    amount: float
+    """[m] hem: rise of the hem, negative to shorten (only shortening);
+    waist: girth change, positive to loosen"""
+    design: Design = msgspec.field(default_factory=Design)
+    """the design whose drape was edited"""
+    design_id: str = ""
+    """that design's identity (its pattern's ``design_id``)"""
+    vertices: int = 0
+    """coarse mesh size [vertices] of the adjustment's solves; 0: the node's default"""
+    max_iters: int = 2
+    """fixed-point updates after the flattening (0..10)"""
+
+    def check(self) -> None:
+        import math
+
+        if not math.isfinite(self.amount) or self.amount == 0.0:
+            raise SchemaError(f"{self.TYPE}: field `$.amount`: {self.amount!r} m is not a finite nonzero length")
+        if self.edit == "hem" and self.amount > 0:
+            raise SchemaError(
+                f"{self.TYPE}: field `$.amount`: hem {self.amount:+g} m lengthens; only shortening "
+                "(negative) is supported: the drape has no cloth below its hem"
+            )
+        if abs(self.amount) > 1.0:
+            raise SchemaError(f"{self.TYPE}: field `$.amount`: {self.amount!r} m is beyond +-1 m")
+        if self.vertices != 0 and not 50 <= self.vertices <= ADJUST_MAX_VERTICES:
+            raise SchemaError(
+                f"{self.TYPE}: field `$.vertices`: {self.vertices} outside 50..{ADJUST_MAX_VERTICES} (0: default)"
+            )
+        if not 0 <= self.max_iters <= ADJUST_MAX_ITERS:
+            raise SchemaError(f"{self.TYPE}: field `$.max_iters`: {self.max_iters} outside 0..{ADJUST_MAX_ITERS}")
+
+
+class AdjustStatusMsg(Message, kw_only=True):
+    """Progress and outcome of one :class:`AdjustMsg`. adjust node -> ui,
+    scripts. Key ``adjust/status``: ``running`` when it starts, ``iteration``
+    after each re-simulated pattern, then ``done`` (the adjusted design went
+    out as ``pattern`` with ``design_id``) or ``failed`` (``error`` says why;
+    nothing was published, the current design stays)."""
+
+    TYPE: ClassVar[str] = "couture/adjust_status/v1"
+    schema: str = "couture/adjust_status/v1"
+    request_id: str = ""
+    """the request this answers"""
+    node: str = ""
+    """the adjust node that ran it"""
+    state: Literal["running", "iteration", "done", "failed"] = "running"
+    iteration: int = 0
+    """fixed-point iterations done (0: the flattening)"""
+    text: str = ""
+    """one line for the designer (what happened, with numbers)"""
+    error: str = ""
+    """why it failed ('' unless state is 'failed')"""
+    hausdorff_pct: float = float("nan")
+    """[% of mannequin height] best re-simulated drape to the target so far"""
+    design_id: str = ""
+    """done: the published adjusted design's identity"""
+    options: dict[str, float] = {}
+    """done: the sloper options the fit changed, name -> new value (SI)"""
+    fit_rms_m: float = float("nan")
+    """done: [m] RMS distance between the published design's pattern outline and the adjusted pattern's"""
+    achieved_m: float = float("nan")
+    """done: [m] the change measured on the published design's own coarse
+    drape, in the request's terms (hem: length change, waist: girth change);
+    a design says only what its sloper options can, so it may fall short of ``amount``"""
+
+
 MESSAGE_TYPES: tuple[type[Message], ...] = (
     PatternMsg,
     EditMsg,
@@ -476,6 +565,8 @@ MESSAGE_TYPES: tuple[type[Message], ...] = (
     SolveRequestMsg,
     SolveResultMsg,
     TryOnMsg,
+    AdjustMsg,
+    AdjustStatusMsg,
 )
 
 REGISTRY: dict[str, type[Message]] = {cls.TYPE: cls for cls in MESSAGE_TYPES}
@@ -640,6 +731,8 @@ def json_schema(cls: type[Message]) -> bytes:
 __all__ = [
     "SchemaError",
     "Message",
+    "AdjustMsg",
+    "AdjustStatusMsg",
     "PatternMsg",
     "EditMsg",
     "MeshMsg",

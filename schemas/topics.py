@@ -18,6 +18,8 @@ import os
 from dataclasses import dataclass
 
 from schemas.messages import (
+    AdjustMsg,
+    AdjustStatusMsg,
     DrapeMsg,
     EditMsg,
     MeshMsg,
@@ -124,6 +126,28 @@ TOPICS: tuple[Topic, ...] = (
         replayed=True,
         compared=False,
         publisher="ui, scripts",
+        max_bytes=64 << 10,
+    ),
+    # a request for many solves: sent at once, never dropped, never replayed
+    # (its outcome, the adjusted pattern, is recorded and replayed as a pattern)
+    Topic(
+        "adjust",
+        AdjustMsg,
+        EXPRESS,
+        recorded=True,
+        replayed=False,
+        compared=False,
+        publisher="ui, scripts",
+        max_bytes=1 * MiB,
+    ),
+    Topic(
+        "adjust/status",
+        AdjustStatusMsg,
+        PLAIN,
+        recorded=True,
+        replayed=False,
+        compared=False,
+        publisher="adjust",
         max_bytes=64 << 10,
     ),
     Topic(

@@ -42,6 +42,8 @@ from couture.client import Client
 from schemas import topics
 from schemas.design import Design, Resolution, Sloper
 from schemas.messages import (
+    AdjustMsg,
+    AdjustStatusMsg,
     DrapeMsg,
     EditMsg,
     Message,
@@ -159,6 +161,8 @@ def templates(client: Client) -> dict[str, Message]:
         SolveRequestMsg: SolveRequestMsg(request_id="fuzz"),
         SolveResultMsg: SolveResultMsg(request_id="fuzz"),
         TryOnMsg: TryOnMsg(op_id="fuzz", op="fix", panel="fuzz"),
+        AdjustMsg: AdjustMsg(request_id="fuzz", edit="hem", amount=-0.1, design=SMALL),
+        AdjustStatusMsg: AdjustStatusMsg(request_id="fuzz", state="failed", error="fuzz"),
     }
     return {t.key: by_type[t.msg_type] for t in topics.TOPICS}
 
@@ -310,8 +314,8 @@ def test_flood_of_garbage_on_every_topic_crashes_nothing(live):
             assert delta("callback_errors") == 0, (node, after[node].last_error)
         ui = Counter(after["ui"].counters)
         # every topic but the solve mirrors, which only the recorder hears, and the try-on
-        # ops, which the ui sends and the solver hears
-        for k in [k for k in keys if k not in ("solve/request", "solve/result/*", "tryon")]:
+        # ops and adjust requests, which the ui sends and the solver / adjust node hears
+        for k in [k for k in keys if k not in ("solve/request", "solve/result/*", "tryon", "adjust")]:
             assert ui[f"bad/{k}"] - c0["ui"][f"bad/{k}"] == sent[k], k  # the ui listens to all of these
         for node in ("remesher", "solver-newton"):  # both judge every press
             assert after[node].counters.get("stale_edits", 0) - c0[node]["stale_edits"] == stale, node

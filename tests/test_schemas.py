@@ -13,6 +13,8 @@ from couture.mesh import grid_sheet
 from schemas import (
     MESSAGE_TYPES,
     REGISTRY,
+    AdjustMsg,
+    AdjustStatusMsg,
     Array,
     Design,
     DrapeMsg,
@@ -30,7 +32,7 @@ from schemas import (
     type_for_topic,
 )
 from schemas.convert import mesh_to_msg, msg_to_mesh
-from schemas.design import Stroke
+from schemas.design import Sloper, Stroke
 from schemas.topics import TOPICS, key_intersects, topic_spec
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64, min_value=-1e6, max_value=1e6)
@@ -143,6 +145,30 @@ def any_msgs(draw):
             seam=draw(st.integers(-1, 20)),
             sewn=draw(st.booleans()),
         )
+    if kind == "AdjustMsg":
+        return AdjustMsg(
+            **h,
+            request_id=draw(text),
+            edit="waist",
+            amount=draw(st.floats(0.001, 0.5)),
+            design=Design(sloper=Sloper(kind="skirt", params={"length": draw(finite)})),
+            vertices=draw(st.sampled_from([0, 50, 400])),
+            max_iters=draw(st.integers(0, 10)),
+        )
+    if kind == "AdjustStatusMsg":
+        return AdjustStatusMsg(
+            **h,
+            request_id=draw(text),
+            node=draw(text),
+            state=draw(st.sampled_from(["running", "iteration", "done", "failed"])),
+            iteration=draw(st.integers(0, 10)),
+            text=draw(text),
+            error=draw(text),
+            hausdorff_pct=draw(finite),
+            options={"length": draw(finite)},
+            fit_rms_m=draw(finite),
+            achieved_m=draw(finite),
+        )
     return SolveResultMsg(**h, request_id=draw(text), solver=draw(text), x=_arr(draw, (2, 3)), residual=draw(finite))
 
 
@@ -171,6 +197,8 @@ def test_all_types_covered_by_round_trip_strategy():
         "SolveRequestMsg",
         "SolveResultMsg",
         "TryOnMsg",
+        "AdjustMsg",
+        "AdjustStatusMsg",
     }
     for name, cls in REGISTRY.items():
         assert name == cls.TYPE and name.startswith("couture/") and name.endswith("/v1")
@@ -389,3 +417,22 @@ def test_tryon_message_names_a_missing_panel_and_a_bad_angle():
         encode(TryOnMsg(op="move", panel="a", vector=np.array([0.0, np.nan, 0.0])))
     ok = decode(encode(TryOnMsg(op="sew")), TryOnMsg)
     assert ok.seam == -1 and ok.vector.numpy().shape == (3,)
+
+
+def test_adjust_request_names_a_bad_amount_and_bad_sizes():
+    ok = decode(encode(AdjustMsg(edit="waist", amount=0.04, vertices=400)), AdjustMsg)
+    assert ok.edit == "waist" and ok.amount == 0.04 and ok.max_iters == 2
+    for kw, words in (
+        ({"edit": "hem", "amount": 0.1}, "only shortening"),
+        ({"edit": "waist", "amount": float("nan")}, "not a finite nonzero"),
+        ({"edit": "waist", "amount": 0.0}, "not a finite nonzero"),
+        ({"edit": "hem", "amount": -3.0}, "beyond"),
+        ({"edit": "hem", "amount": -0.1, "vertices": 10}, "$.vertices"),
+        ({"edit": "hem", "amount": -0.1, "max_iters": 50}, "$.max_iters"),
+    ):
+        with pytest.raises(SchemaError, match="couture/adjust/v1") as e:
+            encode(AdjustMsg(**kw))
+        assert words in str(e.value)
+    data = msgspec.msgpack.encode({"schema": "couture/adjust/v1", "version": 1, "edit": "sleeve", "amount": 0.1})
+    with pytest.raises(SchemaError, match=r"\$\.edit"):
+        decode(data, AdjustMsg)

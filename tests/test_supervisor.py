@@ -18,7 +18,7 @@ from couture.bus import BusConfig, free_port, open_session
 
 pytestmark = pytest.mark.timeout(90)
 
-NODES = ["remesher", "solver-kinetic", "sensitivity"]
+NODES = ["remesher", "solver-kinetic", "sensitivity", "adjust"]
 
 
 def test_up_restarts_killed_node_and_ctrl_c_leaves_no_orphans():

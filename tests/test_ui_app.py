@@ -588,3 +588,75 @@ def test_body_fitted_sloper_sliders_show_the_bodys_measurements(ui):
         assert float(ui.controls.params["hip_girth"].value) == pytest.approx(1.2, abs=step)
     finally:
         ui.controls.show_design(before)
+
+
+def test_adjust_loop_anchor_and_amount_on_a_cylinder():
+    """The waist handle sits on the front of the garment at the waist and
+    slides radially; a radial offset d is a girth change 2πd (a cylinder
+    round the torso axis: closed form). The hem handle slides up: shorter."""
+    from couture.pattern.mannequin import TORSO_AXIS_Z, WAIST_Y
+    from couture.ui.adjust_panel import amount_of, loop_anchor
+
+    a = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    ys = np.linspace(WAIST_Y - 0.5, WAIST_Y + 0.05, 12)
+    R = 0.15
+    x = np.array([[R * np.sin(t), y, TORSO_AXIS_Z + R * np.cos(t)] for y in ys for t in a])
+    p, u = loop_anchor(x, "waist")
+    assert abs(p[1] - WAIST_Y) <= 0.02 and p[2] == pytest.approx(TORSO_AXIS_Z + R)
+    np.testing.assert_allclose(u, [0.0, 0.0, 1.0], atol=1e-12)
+    assert amount_of("waist", 0.01 * u, u) == pytest.approx(2 * np.pi * 0.01)
+    p, u = loop_anchor(x, "hem")
+    assert p[1] == pytest.approx(ys[0]) and p[2] == pytest.approx(TORSO_AXIS_Z + R)
+    assert amount_of("hem", np.array([0.0, 0.07, 0.0]), u) == pytest.approx(-0.07)
+    with pytest.raises(ValueError, match="does not go round the waist"):
+        loop_anchor(x - [0.0, 1.0, 0.0], "waist")
+
+
+def test_adjust_folder_drag_release_sends_a_request_and_shows_progress(ui):
+    """Dragging the hem handle up 8 cm and releasing asks for a hem 8 cm
+    shorter; a drag down is refused (nothing sent, the folder says why);
+    progress and failures show in the folder; undo puts the design back."""
+    from nodes.ui.main import adjust_msg
+    from schemas.messages import AdjustMsg, SchemaError, decode, encode
+
+    sent: list[tuple[str, float]] = []
+    designs: list = []
+    ui.on_adjust = lambda loop, amount: sent.append((loop, amount))
+    ui.on_design_changed = designs.append
+    panel = ui.adjust
+    panel.loop.value = "hem"
+    assert panel.place() and panel.handle.visible
+    x = ui.view3d.x
+    assert panel.anchor[1] == pytest.approx(x[:, 1].min())
+    # what the browser's drag does: drag start, position updates, drag end
+    panel._drag_start()
+    panel.handle.position = tuple(panel.anchor + [0.0, 0.08, 0.0])
+    panel._moved()
+    assert panel.amount_cm.value == pytest.approx(-8.0)
+    panel._released()
+    assert sent == [("hem", pytest.approx(-0.08))]
+    assert "waiting for the adjust node" in panel.progress.content
+    before = panel.before
+    panel._drag_start()
+    panel.handle.position = tuple(panel.anchor - [0.0, 0.05, 0.0])
+    panel._released()
+    assert len(sent) == 1 and "only shortening" in panel.progress.content
+    # progress from the adjust node, then done: undo becomes possible
+    ui.show_adjust_status("iteration", 1, "iteration 1: Hausdorff 1.9 % of height")
+    assert "iteration 1" in panel.progress.content
+    ui.show_adjust_status("done", 1, "hem -0.080 m: design options: length 0.600 -> 0.520")
+    assert "**done**" in panel.progress.content and not panel.undo.disabled
+    n = len(designs)
+    assert panel.undo_last() is before and designs[n:] == [before] and panel.undo.disabled
+    ui.show_adjust_status("failed", 0, "", "no solver node is live in this session")
+    assert "the design is unchanged" in panel.progress.content and "no solver node" in panel.progress.content
+    # no bus: the folder says so instead of failing silently
+    ui.on_adjust = None
+    panel.amount_cm.value = -5.0
+    assert panel.request() is None and "not on a bus" in panel.progress.content
+    # the message the adapter makes of it
+    m = decode(encode(adjust_msg("hem", -0.08, ui.design, "d1", 3)), AdjustMsg)
+    assert m.edit == "hem" and m.amount == -0.08 and m.generation == 3 and m.design_id == "d1"
+    with pytest.raises(SchemaError, match="only shortening"):
+        encode(adjust_msg("hem", 0.08, ui.design, "d1", 3))
+    ui.on_design_changed = None

@@ -34,16 +34,21 @@ def garment_mesh(design: Design, vertices: int | None = None) -> GarmentMesh:
     target size instead of the design's ``resolution.coarse_vertices``)."""
     from couture.remesh.service import RemeshService
 
-    if vertices is not None:
-        design = msgspec.structs.replace(
-            design,
-            resolution=msgspec.structs.replace(
-                design.resolution,
-                coarse_vertices=int(vertices),
-                fine_vertices=max(int(vertices), design.resolution.fine_vertices),
-            ),
-        )
-    return RemeshService().set_design(design, 1)[0].mesh
+    return RemeshService().set_design(at_resolution(design, vertices), 1)[0].mesh
+
+
+def at_resolution(design: Design, vertices: int | None) -> Design:
+    """``design`` with coarse meshes of ``vertices`` (None: as it is)."""
+    if vertices is None:
+        return design
+    return msgspec.structs.replace(
+        design,
+        resolution=msgspec.structs.replace(
+            design.resolution,
+            coarse_vertices=int(vertices),
+            fine_vertices=max(int(vertices), design.resolution.fine_vertices),
+        ),
+    )
 
 
 def make_target(edit: str, amount: float, x_src: np.ndarray, tris: np.ndarray) -> Target:

@@ -67,15 +67,18 @@ STANDARD_NODES = (
     "solver-newton",
     "solver-verlet",
     "sensitivity",
+    "adjust",
     "ui",
     "recorder",
 )
 """what ``couture up`` may start: the default node set of ``couture certs``"""
 
-DEFAULT_WRITERS = ("ui", "sensitivity")
-"""nodes that publish designs in a standard ``couture up`` (the UI; the 3D tug)"""
+DEFAULT_WRITERS = ("ui", "sensitivity", "adjust")
+"""nodes that publish designs in a standard ``couture up`` (the UI; the 3D tug; adjusted patterns)"""
 
-PATTERN_KEYS = [f"couture/*/{t}{suffix}" for t in ("pattern", "edit", "tryon") for suffix in ("", "/**", "/@adv/**")]
+PATTERN_KEYS = [
+    f"couture/*/{t}{suffix}" for t in ("pattern", "edit", "tryon", "adjust") for suffix in ("", "/**", "/@adv/**")
+]
 """what only writers may put, and reply with: a zenoh-ext history cache
 answers a late joiner with the sample's own key (``couture/<s>/pattern``),
 so denying ``reply`` there keeps an unlisted node's cached design from late
@@ -96,7 +99,7 @@ class Policy:
     """Who may do what (common names)."""
 
     writers: list[str] = field(default_factory=list)
-    """may put on pattern, edit and tryon"""
+    """may put on pattern, edit, tryon and adjust"""
     solvers: list[str] = field(default_factory=list)
     """may answer solve queries (and publish their results)"""
 

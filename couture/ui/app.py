@@ -9,6 +9,8 @@ GUI APIs, CoutureUI owns the servers and wires the parts, one job each:
 - :class:`~couture.ui.tools.PatternTools`: pattern tools → strokes;
 - :class:`~couture.ui.gestures.Gestures`: drags → typed edits;
 - :class:`~couture.ui.exports.SessionPanel`: record toggle, exports;
+- :class:`~couture.ui.adjust_panel.AdjustPanel`: a hem or waist loop dragged
+  in 3D -> a pattern adjustment request (the adjust node runs it);
 - :class:`~couture.ui.status.StatusPanel`: status text;
 - :class:`~couture.ui.loops.DrapeRenderer` and :class:`~couture.ui.loops.Drafter`:
   the threads that bring the newest drape and the newest design to the screen.
@@ -38,6 +40,7 @@ import viser
 
 from couture.mesh import GarmentMesh
 from couture.pattern.drafted import DraftedPattern
+from couture.ui.adjust_panel import AdjustPanel
 from couture.ui.controls import Controls
 from couture.ui.drape_view import DrapeView
 from couture.ui.exports import SessionPanel
@@ -97,6 +100,9 @@ class CoutureUI:
         self.on_pick: Callable[[MaterialPoint], None] | None = None
         self.on_tryon: Callable[[dict], None] | None = None
         """cb(op) of the Try-on folder's buttons (TryOnMsg's fields); the adapter publishes it"""
+        self.on_adjust: Callable[[str, float], None] | None = None
+        """cb(loop, amount [m]) of the Adjust pattern folder; the adapter sends an
+        ``adjust`` request and answers with :meth:`show_adjust_status`"""
         self.meshes: dict[str, GarmentMesh] = {}
         """newest mesh per level"""
         self.pattern: DraftedPattern | None = None
@@ -155,6 +161,13 @@ class CoutureUI:
             lambda op: self.on_tryon and self.on_tryon(op),
             drape=lambda: (self.view3d.mesh, self.view3d.x),
         )
+        self.adjust = AdjustPanel(
+            self.server3d,
+            self._request_adjust,
+            on_undo=self.commit,
+            drape=lambda: self.view3d.x,
+            design=lambda: self.design,
+        )
         self.status = StatusPanel(self.server3d.gui)
         self.session = SessionPanel(
             self.server3d.gui,
@@ -184,6 +197,7 @@ class CoutureUI:
             selected_solver=lambda: self.selected_solver,
             max_fps=c.max_fps,
         )
+        self.renderer.on_pushed = lambda frame: self.adjust.follow(frame.x)
         self.drafter = Drafter(
             show_pattern=self.show_pattern, pattern=lambda: self.pattern, show_handles=self._show_handles
         )
@@ -333,6 +347,15 @@ class CoutureUI:
         """Show an edit that another client is making (a replay): its handle
         and the outlines move; the design changes when its release commits."""
         self.view2d.preview_element(element, np.asarray(d, np.float64).reshape(2))
+
+    def show_adjust_status(self, state: str, iteration: int, text: str, error: str = "") -> None:
+        """Progress of this UI's adjust request (running, iteration, done, failed)."""
+        self.adjust.show_status(state, iteration, text, error)
+
+    def _request_adjust(self, loop: str, amount: float) -> None:
+        if self.on_adjust is None:
+            raise RuntimeError("this UI is not on a bus: no adjust node to ask")
+        self.on_adjust(loop, amount)
 
     def select_solver(self, name: str) -> None:
         """Show only ``name``'s drapes ('any': every solver's); predictions always show."""

@@ -45,6 +45,8 @@ class DrapeRenderer:
         self.slot: LatestSlot[DrapeFrame] = LatestSlot()
         self.on_screen: DrapeFrame | None = None
         self.frames_pushed = 0
+        self.on_pushed: Callable[[DrapeFrame], None] | None = None
+        """called (on this thread) after each drape reached the view"""
 
     def run(self, stop: threading.Event) -> None:
         last_push = 0.0
@@ -83,6 +85,8 @@ class DrapeRenderer:
         self.frames_pushed += 1
         self.status.show_frame(frame, self.frames_pushed)
         self.controls.show_legend(self.view3d.scale)
+        if self.on_pushed is not None:
+            self.on_pushed(frame)
 
 
 class Drafter:

@@ -43,7 +43,17 @@ from couture.ui.status import describe_frame
 from schemas.arrays import Array
 from schemas.convert import msg_to_mesh
 from schemas.design import Design
-from schemas.messages import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg, StatusMsg, TryOnMsg
+from schemas.messages import (
+    AdjustMsg,
+    AdjustStatusMsg,
+    DrapeMsg,
+    EditMsg,
+    MeshMsg,
+    PatternMsg,
+    RejectedMsg,
+    StatusMsg,
+    TryOnMsg,
+)
 
 log = logging.getLogger("couture.ui.node")
 
@@ -91,6 +101,9 @@ class UIAdapter:
         self.pattern_pub = bus.publisher("pattern", PatternMsg)
         self.edit_pub = bus.publisher("edit", EditMsg)
         self.tryon_pub = bus.publisher("tryon", TryOnMsg)
+        self.adjust_pub = bus.publisher("adjust", AdjustMsg)
+        self._adjust_ids: set[str] = set()
+        """the adjust requests this ui sent (their status is shown)"""
         self._own_edits: set[str] = set()
         self._drape_gen: dict[tuple[str, str], int] = {}
         self.view = ShownDesign()
@@ -106,6 +119,7 @@ class UIAdapter:
         ui.on_design_changed = self.publish_design
         ui.on_edit = self.publish_edit
         ui.on_tryon = self.publish_tryon
+        ui.on_adjust = self.publish_adjust
         ui.on_solver_selected = self.select_solver
         ui.on_record = self.record
         bus.subscribe("pattern", self.on_pattern)
@@ -114,6 +128,7 @@ class UIAdapter:
         bus.subscribe("drape/*", self.on_drape)
         bus.subscribe("status/*", self.on_status)
         bus.subscribe("rejected", self.on_rejected)
+        bus.subscribe("adjust/status", self.on_adjust_status)
         bus.watch_nodes(self.on_liveliness)
         self._update_notes()
         node.status_fields = self.status_view
@@ -149,6 +164,30 @@ class UIAdapter:
             generation = self.view.edit_generation()
         self.tryon_pub.put(tryon_msg(op, generation))
         self.node.count("tryon_out")
+
+    def publish_adjust(self, loop: str, amount: float) -> str:
+        """The Adjust pattern folder's request: one ``couture/adjust/v1`` for the
+        design shown; raises (the folder shows it) when no adjust node is live
+        or the request is malformed."""
+        adjusters = sorted(n for n, alive in self.live.items() if alive and n.startswith("adjust"))
+        if not adjusters:
+            raise RuntimeError(
+                "no adjust node is live in this session (couture up starts one; or run python -m nodes.adjust)"
+            )
+        with self._lock:
+            generation = self.view.edit_generation()
+            design_id = self.view.shown_id or ""
+        msg = adjust_msg(loop, amount, self.ui.design, design_id, generation)
+        self._adjust_ids.add(msg.request_id)
+        self.adjust_pub.put(msg)  # validates: a malformed request raises SchemaError naming the field
+        self.node.count("adjust_out")
+        log.info("adjust request %s: %s %+.3f m to %s", msg.request_id, loop, amount, adjusters)
+        return msg.request_id
+
+    def on_adjust_status(self, msg: AdjustStatusMsg) -> None:
+        if msg.request_id not in self._adjust_ids:
+            return  # another client's request
+        self.ui.show_adjust_status(msg.state, msg.iteration, msg.text, msg.error)
 
     # -- in (Zenoh threads: store and return)
     def on_pattern(self, msg: PatternMsg) -> None:
@@ -409,6 +448,18 @@ def tryon_msg(op: dict, generation: int) -> TryOnMsg:
         angle=float(op.get("angle", 0.0)),
         seam=int(op.get("seam", -1)),
         sewn=bool(op.get("sewn", True)),
+        generation=generation,
+    )
+
+
+def adjust_msg(loop: str, amount: float, design: Design, design_id: str, generation: int) -> AdjustMsg:
+    """The ``adjust`` request of the Adjust pattern folder."""
+    return AdjustMsg(
+        request_id=uuid.uuid4().hex[:12],
+        edit=loop,  # type: ignore[arg-type]  # the folder offers only 'hem' and 'waist'; encode checks
+        amount=float(amount),
+        design=design,
+        design_id=design_id,
         generation=generation,
     )
 
