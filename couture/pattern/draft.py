@@ -140,6 +140,20 @@ def sloper_of(design: Design):
     return SLOPERS[kind]
 
 
+def sloper_params(design: Design) -> dict[str, float]:
+    """The design's option values before defaults: its own, over (for a sloper
+    drafted from the body, ``SloperDef.from_body``) the measurements of the
+    body it names (:func:`couture.pattern.body_measures.body_options`)."""
+    sd = sloper_of(design)
+    given = dict(design.sloper.params)
+    if sd.from_body:
+        from couture.pattern.body_measures import body_options
+
+        names = {o.name for o in sd.options}
+        given = {**{k: v for k, v in body_options(design.body.name).items() if k in names}, **given}
+    return given
+
+
 @lru_cache(maxsize=64)
 def _counts(kind: str, topo: tuple, spacing: float) -> dict[tuple[str, str], tuple[int, ...]]:
     sd = SLOPERS[kind]
@@ -210,7 +224,7 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
 
     check_body(design.body.name)  # placement reads the body's sections
     sd = sloper_of(design)
-    params = resolve(sd.options, design.sloper.params)
+    params = resolve(sd.options, sloper_params(design))
     topo = tuple(sorted((o.name, params[o.name]) for o in sd.options if o.integer))
     sloper = sd.draft(params)
     counts = _counts(design.sloper.kind, topo, spacing)

@@ -49,6 +49,9 @@ NECK_GIRTH = _body("neck_girth", M.NECK_GIRTH, 0.28, 0.50, "neck base circumfere
 THIGH = _body("thigh_girth", M.THIGH_GIRTH, 0.40, 0.90, "one thigh, just below the crotch")
 ANKLE = _body("ankle_girth", M.ANKLE_GIRTH, 0.17, 0.35, "one ankle")
 CROTCH_DEPTH = _body("crotch_depth", M.WAIST_Y - M.CROTCH_Y, 0.20, 0.40, "waist to crotch, seated depth")
+WAIST_HEIGHT = _body(
+    "waist_height", M.WAIST_Y - M.FLOOR_Y, 0.80, 1.30, "waist line above the floor (places the garment on the body)"
+)
 ARM_GIRTH = _body("upper_arm_girth", M.UPPER_ARM_GIRTH, 0.20, 0.50, "upper arm circumference")
 
 
