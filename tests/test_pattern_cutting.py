@@ -26,7 +26,13 @@ EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "couture/pattern/exampl
 IDS = [p.stem for p in EXAMPLES]
 SEAM, HEM = 0.01, 0.03
 # one per-seam width per example, on a segment that design has (a sewn one where there is one)
-OVERRIDE = {"default_skirt": "side_right", "skirt_edited": "waist", "dress": "neck", "shirt": "shoulder_right"}
+OVERRIDE = {
+    "default_skirt": "side_right",
+    "skirt_edited": "waist",
+    "dress": "neck",
+    "shirt": "shoulder_right",
+    "shirt_set_in": "shoulder_right",
+}
 OVERRIDE_W = 0.015
 
 
@@ -131,8 +137,10 @@ def test_allowance_widths_read_back(tmp_path, path):
             measured[s.name] = float(np.median(d))
         hems = [v for k, v in measured.items() if k in ("hem", "cuff")]
         seams = [v for k, v in measured.items() if k not in ("hem", "cuff")]
-        assert hems and seams, (panel.name, measured)  # both measured on every panel
-        assert min(hems) > max(seams) + 0.01  # the hem is deeper than every seam
+        # both measured on every panel with a hem (a collar band has none)
+        assert seams and (hems or not any(s.name in ("hem", "cuff") for s in outline_segs)), (panel.name, measured)
+        if hems:
+            assert min(hems) > max(seams) + 0.01  # the hem is deeper than every seam
 
 
 def _ray_hit(P: np.ndarray, o: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -176,7 +184,7 @@ def test_notches_match_across_seams(tmp_path, path):
     point; on both sides of every seam those points sit at the same arc length
     from the seam's matching ends (b walked backwards when the seam says so),
     within 0.5 mm; eased seams (different lengths) at the same fraction. Each
-    side has its two ends, its midpoint and the point 7 cm from its start notched."""
+    side has its two ends, its midpoint and (if longer) the point 7 cm from its start notched."""
     pattern = draft(load_design(path))
     # a notch 7 cm from each seam's start tells its ends apart: b must be walked the right way
     export_dxf(pattern, tmp_path / "p.dxf", spec=CutSpec(group=False, notch_distances=(0.07,)))
@@ -206,7 +214,8 @@ def test_notches_match_across_seams(tmp_path, path):
         sb = _unique([s for q in hits[pb.name] if (s := _arc_of(B, q)) is not None])
         assert len(sa) == len(sb) >= 3, (sp, sa, sb)
         assert sa[0] < 1e-4 and abs(sa[-1] - La) < 1e-4 and np.abs(sa - La / 2).min() < 5e-4
-        assert np.abs(sa - 0.07).min() < 5e-4
+        if La > 0.07:  # a seam shorter than 7 cm (a collar band's end) has no such notch
+            assert np.abs(sa - 0.07).min() < 5e-4
         if abs(La - Lb) < 1e-3:
             np.testing.assert_allclose(sa, sb, atol=5e-4, err_msg=str(sp))
         else:  # eased: proportional, as the seam is sewn

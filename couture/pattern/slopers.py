@@ -324,10 +324,11 @@ def _arm_frame(sign: float):
     return a, f / np.linalg.norm(f)
 
 
-def _sleeve_rings(seams: list[tuple[str, str, str, str]]) -> list[Ring]:
+def _sleeve_rings(seams: list[tuple[str, str, str, str]], down: float = 0.03) -> list[Ring]:
     """One ring per sleeve about its arm's placement axis (the cap top a little
     down the arm from the shoulder); appends the cap-to-armhole seams to
-    ``seams``, each cap half sewn to the armhole on the side it faces."""
+    ``seams``, each cap half sewn to the armhole on the side it faces. ``down``
+    [m]: the cap top's distance down the arm axis from the arm root point."""
     rings = []
     for name, sign in (("sleeve_left", 1.0), ("sleeve_right", -1.0)):
         a, f = _arm_frame(sign)
@@ -343,7 +344,7 @@ def _sleeve_rings(seams: list[tuple[str, str, str, str]]) -> list[Ring]:
         else:
             seams += [(name, "cap_right", "back", back_arm), (name, "cap_left", "front", front_arm)]
         # cap top a little down the arm, clear of the shoulder
-        origin = M.LEFT_ARM_SHOULDER * np.array([sign, 1.0, 1.0]) - 0.03 * a
+        origin = M.LEFT_ARM_SHOULDER * np.array([sign, 1.0, 1.0]) - down * a
         rings.append(
             Ring(
                 [name],
@@ -431,6 +432,8 @@ SHIRT_SET_IN_OPTIONS = (
 )
 BACK_NECK_DEPTH = 0.02
 """[m] back neckline drop below the neck point"""
+SLEEVE_DOWN = 0.03
+"""[m] a set-in sleeve's cap top this far down its arm axis from the arm root point"""
 COLLAR_DROP = -0.005
 """[m] the collar's seam line starts this far below the neck points (at the neck's centre line; < 0: above)"""
 NECK_Z = 0.024
@@ -577,7 +580,7 @@ def draft_shirt_set_in(p: dict[str, float]) -> SloperDraft:
     ]
     y_waist = M.FLOOR_Y + p["waist_height"]
     rings = [Ring(["front", "back"], [0.0, np.pi], np.array([0.0, y_waist, M.TORSO_AXIS_Z]), section="torso")]
-    rings += _sleeve_rings(seams)
+    rings += _sleeve_rings(seams, SLEEVE_DOWN)
     # the collar starts round the neck just above the neck points (the neck is
     # narrow there, below the chin; the neckline itself lies on the shoulders
     # and chest, where a band of the neckline's length would cross the body),
