@@ -149,3 +149,21 @@ def test_options_follow_the_named_body():
     # other slopers keep the mannequin's defaults on any body (the grading bench's same garment)
     _, ctx = draft_with_context(Design(sloper=Sloper(kind="shirt"), body=Body(name="XL")))
     assert ctx.params["bust_girth"] == next(o.default for o in SLOPERS["shirt"].options if o.name == "bust_girth")
+
+
+def test_ui_shows_the_values_the_draft_uses():
+    """The UI's sliders and handles read the body's measurements for a sloper
+    drafted from the body (the values draft_with_context resolves)."""
+    from couture.ui.state import option_values
+
+    d = _design({"length": 0.3}, body="XL")
+    _, ctx = draft_with_context(d)
+    vals = option_values(d)
+    assert vals["length"] == 0.3
+    for name in ("bust_girth", "neck_girth", "upper_arm_girth", "waist_height"):
+        assert vals[name] == ctx.params[name]
+    assert option_values(Design(sloper=Sloper(kind="shirt", params={"length": 0.3}), body=Body(name="XL"))) == {
+        "length": 0.3
+    }
+    # an unknown body leaves the design's own values (drafting reports the body)
+    assert option_values(_design({"length": 0.3}, body="nobody")) == {"length": 0.3}
