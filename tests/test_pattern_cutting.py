@@ -32,6 +32,7 @@ OVERRIDE = {
     "dress": "neck",
     "dress_waist": "waist_center",
     "shirt": "shoulder_right",
+    "shirt_set_in": "shoulder_right",
 }
 OVERRIDE_W = 0.015
 
@@ -185,7 +186,7 @@ def test_notches_match_across_seams(tmp_path, path):
     point; on both sides of every seam those points sit at the same arc length
     from the seam's matching ends (b walked backwards when the seam says so),
     within 0.5 mm; eased seams (different lengths) at the same fraction. Each
-    side has its two ends, its midpoint and the point 7 cm from its start notched."""
+    side has its two ends, its midpoint and (if longer) the point 7 cm from its start notched."""
     pattern = draft(load_design(path))
     # a notch 7 cm from each seam's start tells its ends apart: b must be walked the right way
     export_dxf(pattern, tmp_path / "p.dxf", spec=CutSpec(group=False, notch_distances=(0.07,)))
@@ -215,7 +216,8 @@ def test_notches_match_across_seams(tmp_path, path):
         sb = _unique([s for q in hits[pb.name] if (s := _arc_of(B, q)) is not None])
         assert len(sa) == len(sb) >= 3, (sp, sa, sb)
         assert sa[0] < 1e-4 and abs(sa[-1] - La) < 1e-4 and np.abs(sa - La / 2).min() < 5e-4
-        assert np.abs(sa - 0.07).min() < 5e-4
+        if La > 0.07:  # a seam shorter than 7 cm (a collar band's end) has no such notch
+            assert np.abs(sa - 0.07).min() < 5e-4
         if abs(La - Lb) < 1e-3:
             np.testing.assert_allclose(sa, sb, atol=5e-4, err_msg=str(sp))
         else:  # eased: proportional, as the seam is sewn

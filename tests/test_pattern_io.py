@@ -148,12 +148,14 @@ def body():
 def _panel_points(panel, step=0.025):
     o = panel.outline
     lo, hi = o.min(0), o.max(0)
+    narrow = float((hi - lo).min())  # a collar band: finer and nearer its edges
+    step, margin = min(step, 0.25 * narrow), min(0.02, 0.3 * narrow)
     g = np.stack(np.meshgrid(np.arange(lo[0], hi[0], step), np.arange(lo[1], hi[1], step)), -1).reshape(-1, 2)
     g = g[point_in_polygon(g, o)]
     # interior only: panels are meant to touch along their seams
     from scipy.spatial import cKDTree
 
-    return g[cKDTree(o).query(g)[0] > 0.02]
+    return g[cKDTree(o).query(g)[0] > margin]
 
 
 @pytest.mark.parametrize("kind", sorted(SLOPERS))

@@ -25,7 +25,7 @@ pytestmark = pytest.mark.slow
 SLID = {"trousers": 0.05}
 
 
-@pytest.mark.parametrize("kind", ["skirt", "dress", "shirt", "trousers"])
+@pytest.mark.parametrize("kind", ["skirt", "dress", "shirt", "trousers", "shirt_set_in"])
 def test_sloper_drapes_to_a_dressed_equilibrium(kind):
     row, _, _ = drape(kind, vertices=400, solvers=("newton", "kinetic"), max_seconds=10.0, tol=1e-3)
     assert row.min_phi_mm >= INSIDE_LIMIT * 1e3, row

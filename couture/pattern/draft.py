@@ -8,11 +8,12 @@ each, holes ``HOLE_SAMPLES``). So for one design (sloper kind, integer
 options, stroke list) the number of polyline vertices never depends on
 option or stroke *values*; only positions move, smoothly.
 
-Body-fitted slopers (``SloperDef.body_fitted``, e.g. ``dress_waist``): the
-body-measurement options the design does not set take the design's body's
-measured values (:func:`couture.pattern.options.body_options`) and the
-sloper's rings hang at that body's measured waist height; other slopers draft
-from the mannequin's measurements on any body.
+Body-fitted slopers (``SloperDef.body_fitted``: ``dress_waist``,
+``shirt_set_in``): the body-measurement options the design does not set take
+the design's body's measured values
+(:func:`couture.pattern.body_measures.body_options`), its waist height among
+them (``waist_height``: the rings hang there); other slopers draft from the
+mannequin's measurements on any body.
 
 Strokes (``Stroke.kind`` and ``params``):
 
@@ -41,11 +42,10 @@ from functools import lru_cache
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from couture.pattern import mannequin as M
 from couture.pattern.drafted import DraftedPattern, Panel, SeamSpec, Segment
 from couture.pattern.errors import PatternError
 from couture.pattern.geometry import Curve
-from couture.pattern.options import body_options, resolve
+from couture.pattern.options import resolve
 from couture.pattern.placement import fit_ring, place
 from couture.pattern.slopers import SLOPERS, SloperDraft
 from schemas.design import Design, Stroke
@@ -147,6 +147,20 @@ def sloper_of(design: Design):
     return SLOPERS[kind]
 
 
+def sloper_params(design: Design) -> dict[str, float]:
+    """The design's option values before defaults: its own, over (for a sloper
+    drafted from the body, ``SloperDef.body_fitted``) the measurements of the
+    body it names (:func:`couture.pattern.body_measures.body_options`)."""
+    sd = sloper_of(design)
+    given = dict(design.sloper.params)
+    if sd.body_fitted:
+        from couture.pattern.body_measures import body_options
+
+        names = {o.name for o in sd.options}
+        given = {**{k: v for k, v in body_options(design.body.name).items() if k in names}, **given}
+    return given
+
+
 @lru_cache(maxsize=64)
 def _counts(kind: str, topo: tuple, spacing: float) -> dict[tuple[str, str], tuple[int, ...]]:
     sd = SLOPERS[kind]
@@ -217,13 +231,9 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
 
     check_body(design.body.name)  # placement reads the body's sections
     sd = sloper_of(design)
-    given, waist_y = _given(design)
-    params = resolve(sd.options, given)
+    params = resolve(sd.options, sloper_params(design))
     topo = tuple(sorted((o.name, params[o.name]) for o in sd.options if o.integer))
     sloper = sd.draft(params)
-    if waist_y is not None:  # hang the rings at the body's own waist height
-        for ring in sloper.rings:
-            ring.origin = np.asarray(ring.origin, float) + np.array([0.0, waist_y - M.WAIST_Y, 0.0])
     counts = _counts(design.sloper.kind, topo, spacing)
     ctx = DraftContext(params, sloper)
     for pd in sloper.panels:
@@ -428,22 +438,11 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
     return pattern, ctx
 
 
-def _given(design: Design) -> tuple[dict, float | None]:
-    """(option values the design gives, its body's waist height or None): its
-    own params over, for a body-fitted sloper, its body's measurements."""
-    sd = sloper_of(design)
-    if not sd.body_fitted:
-        return dict(design.sloper.params), None
-    measured, waist_y = body_options(design.body.name)
-    names = {o.name for o in sd.options}
-    return {**{k: v for k, v in measured.items() if k in names}, **design.sloper.params}, waist_y
-
-
 def option_values(design: Design) -> dict:
     """The option values a design gives (the rest take their defaults): its
     sloper params, over its body's measured values for a body-fitted sloper
     (what an option control shows)."""
-    return _given(design)[0]
+    return sloper_params(design)
 
 
 def _has(panel: Panel, name: str) -> bool:

@@ -49,6 +49,9 @@ NECK_GIRTH = _body("neck_girth", M.NECK_GIRTH, 0.28, 0.50, "neck base circumfere
 THIGH = _body("thigh_girth", M.THIGH_GIRTH, 0.40, 0.90, "one thigh, just below the crotch")
 ANKLE = _body("ankle_girth", M.ANKLE_GIRTH, 0.17, 0.35, "one ankle")
 CROTCH_DEPTH = _body("crotch_depth", M.WAIST_Y - M.CROTCH_Y, 0.20, 0.40, "waist to crotch, seated depth")
+WAIST_HEIGHT = _body(
+    "waist_height", M.WAIST_Y - M.FLOOR_Y, 0.80, 1.30, "waist line above the floor (places the garment on the body)"
+)
 ARM_GIRTH = _body("upper_arm_girth", M.UPPER_ARM_GIRTH, 0.20, 0.50, "upper arm circumference")
 
 
@@ -77,39 +80,3 @@ def resolve(options: tuple[Option, ...], params: dict[str, float]) -> dict[str, 
             raise PatternError(f"param:{o.name}", f"value {v:g} must be a whole number in [{o.min:g}, {o.max:g}]")
         out[o.name] = v
     return out
-
-
-def body_options(name: str) -> tuple[dict[str, float], float]:
-    """(body-measurement option values, waist height [m]) of a named body
-    (``couture.bodies``), read where the grading bench reads a body's: its
-    ``measured`` record in ``bodies.json`` (the rows of
-    ``couture.bodies.table()``: ISO 8559-1 girths and landmark heights
-    measured from its mesh by ``couture.bodies.measure``).
-
-    Girths: ``bust_girth``, ``waist_girth``, ``hip_girth``. Lengths from the
-    landmark heights: ``waist_to_hip`` (waist to hip height),
-    ``waist_to_underarm`` (waist to underarm height less 3 cm, as the
-    mannequin default), ``waist_to_shoulder`` (waist to the mannequin's
-    shoulder height: every shipped body stands on the same floor at about the
-    same stature, and shoulders are not measured). Shoulder width and neck
-    girth are not measured: they stay the mannequin's. ``'default'`` gives no
-    values and the mannequin's waist height, so a design on the default body
-    drafts from the option defaults (the mannequin's measurements)."""
-    from couture import bodies
-
-    try:
-        bodies.check_name(name)
-    except ValueError as e:
-        raise PatternError("body.name", str(e)) from None
-    if name == "default":
-        return {}, M.WAIST_Y
-    m = bodies.index()["bodies"][name]["measured"]
-    wy = float(m["waist_y"])
-    return {
-        "bust_girth": float(m["bust_girth"]),
-        "waist_girth": float(m["waist_girth"]),
-        "hip_girth": float(m["hip_girth"]),
-        "waist_to_hip": wy - float(m["hip_y"]),
-        "waist_to_underarm": float(m["underarm_y"]) - wy - 0.03,
-        "waist_to_shoulder": M.SHOULDER_Y - wy,
-    }, wy

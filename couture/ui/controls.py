@@ -13,7 +13,7 @@ import msgspec
 import viser
 
 from couture.ui import colormaps
-from couture.ui.state import FABRIC_PRESETS, sloper_kinds, sloper_options
+from couture.ui.state import FABRIC_PRESETS, option_values, sloper_kinds, sloper_options
 from couture.ui.widgets import nice_step, on_user_change
 from schemas.design import Design, Fabric
 
@@ -87,10 +87,10 @@ class Controls:
         if self.sloper.value != d.sloper.kind and d.sloper.kind in self.sloper.options:
             self.sloper.value = d.sloper.kind  # type: ignore[misc]  # viser has the setter; mypy misses it
             self._build_option_sliders(d)
-        given = _given_values(d)
+        values = option_values(d)  # a sloper drafted from the body follows the body
         for name, h in self.params.items():
-            if name in given:
-                h.value = float(given[name])
+            if name in values:
+                h.value = float(values[name])
         if d.body.name in self.body.options:
             self.body.value = d.body.name  # type: ignore[misc]  # viser has the setter; mypy misses it
         f = d.fabric
@@ -123,10 +123,10 @@ class Controls:
             h.remove()
         self.params = {}
         opts = sloper_options(d.sloper.kind)
-        given = _given_values(d)
+        values = option_values(d)
         with self._option_folder:
             for o in opts:
-                val = float(given.get(o.name, o.default))
+                val = float(values.get(o.name, o.default))
                 step = 1.0 if o.integer else nice_step(o.max - o.min)
                 label = f"{o.name} [{o.unit}]" if o.unit else o.name
                 h = self.gui.add_slider(label, o.min, o.max, step, min(max(val, o.min), o.max))

@@ -136,7 +136,9 @@ def _inside_range(design, element: str, options: dict):
     if not element.startswith("param:") or element[6:] not in options:
         return design
     o = options[element[6:]]
-    v = float(design.sloper.params.get(o.name, o.default))
+    from couture.ui.state import option_values
+
+    v = float(option_values(design).get(o.name, o.default))
     margin = 1e-5 * max(o.max - o.min, 1e-9)
     inside = min(max(v, o.min + margin), o.max - margin)
     if inside == v:
@@ -157,7 +159,9 @@ def plan_handles(design, pattern, *, min_gap: float = 0.03, near: float = 0.8) -
         log.warning("no handles: %s", e)
         return HandleSet([], {})
     options = {o.name: o for o in SLOPERS[design.sloper.kind].options} if design.sloper.kind in SLOPERS else {}
-    params = dict(design.sloper.params)
+    from couture.ui.state import option_values
+
+    params = option_values(design)
     # strokes first (their vertex is unambiguous), then the style options
     order = [e for e in elements if _element_kind(e) != "param"] + [
         e for e in elements if _element_kind(e) == "param" and not _is_body_option(e)

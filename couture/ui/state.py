@@ -100,3 +100,17 @@ def sloper_kinds() -> list[str]:
 def sloper_options(kind: str) -> tuple[Option, ...]:
     """The option table of a sloper (default, min, max, unit)."""
     return tuple(SLOPERS[kind].options)
+
+
+def option_values(design: Any) -> dict[str, float]:
+    """The design's option values short of the table defaults: its own params,
+    over the named body's measurements for a sloper drafted from the body
+    (``couture.pattern.draft.sloper_params``); its own params alone where the
+    sloper or body is unknown (drafting reports those)."""
+    from couture.pattern.draft import sloper_params
+    from couture.pattern.errors import PatternError
+
+    try:
+        return sloper_params(design)
+    except (PatternError, ValueError):
+        return dict(design.sloper.params)
