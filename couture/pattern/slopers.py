@@ -426,10 +426,10 @@ TROUSERS_OPTIONS = (
     opt(
         "band_height",
         BAND_HEIGHT,
-        0.0,
+        0.02,
         0.08,
         "m",
-        "height of the waistband piece sewn to the waist edge, centred on the waist (0: none)",
+        "height of the elastic waistband piece sewn to the waist edge, centred on the waist",
     ),
     opt("hip_ease", 0.05, 0.0, 0.15, "m", "added to the hip girth"),
     opt(
@@ -463,9 +463,7 @@ def draft_trousers(p: dict[str, float]) -> SloperDraft:
     below the body's crotch: the centre seam runs round the belly and seat, so
     a crotch drafted at the body's crotch depth is too short, bears up into the
     crotch and pulls the waist down (by 1.4 N at ``rise_ease`` 0, more than the
-    trousers' 1.3 N weight). ``band_height`` 0 leaves no band (the leg panels'
-    top is the waist edge, placed 2 cm off the body); with no elastic
-    (``waistband`` 1) the default 20 N/m fabric cannot carry the trousers'
+    trousers' 1.3 N weight). With no elastic (``waistband`` 1) the default 20 N/m fabric cannot carry the trousers'
     weight at the waist and they slide down toward the hip."""
     bh = p["band_height"]
     # the band covers the waist +- bh/2: the legs' panels start bh/2 below it
@@ -528,8 +526,7 @@ def draft_trousers(p: dict[str, float]) -> SloperDraft:
         ("back_left", "center", "back_right", "center"),
     ]
     rings: list[Ring] = []
-    if bh > 0:
-        _waistband(panels, seams, rings, 2 * ww, bh)
+    _waistband(panels, seams, rings, 2 * ww, bh)
     for leg, sign in (("left", 1.0), ("right", -1.0)):
         a = M.LEFT_LEG_AXIS * np.array([sign, 1.0, 1.0])
         a = a / np.linalg.norm(a)
