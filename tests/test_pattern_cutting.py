@@ -216,7 +216,7 @@ def test_notches_match_across_seams(tmp_path, path):
         sb = _unique([s for q in hits[pb.name] if (s := _arc_of(B, q)) is not None])
         assert len(sa) == len(sb) >= 3, (sp, sa, sb)
         assert sa[0] < 1e-4 and abs(sa[-1] - La) < 1e-4 and np.abs(sa - La / 2).min() < 5e-4
-        if La > 0.07:  # a seam shorter than 7 cm (a collar band's end) has no such notch
+        if La > 0.07 + 1e-3:  # a seam shorter than 7 cm (a collar band's end, the waistband's sides) has no such notch
             assert np.abs(sa - 0.07).min() < 5e-4
         if abs(La - Lb) < 1e-3:
             np.testing.assert_allclose(sa, sb, atol=5e-4, err_msg=str(sp))
@@ -257,8 +257,10 @@ def test_grain_lines_and_labels(tmp_path, path):
         assert any(layer == "15" and s.startswith(f"Cut {q}") for layer, s in b["texts"])
         total += q
     assert total == len(pattern.panels)
-    if path.stem in ("default_skirt", "trousers"):  # identical gores; legs mirrored
+    if path.stem == "default_skirt":  # identical gores
         assert len(blocks) == 1
+    if path.stem == "trousers":  # legs mirrored; the waistband's front and back alike
+        assert len(blocks) == 2
 
 
 def test_grain_follows_the_panel(tmp_path):

@@ -179,6 +179,8 @@ def test_placement_panels_do_not_overlap(body, kind):
         for a in range(len(names)):
             ta = cKDTree(clouds[names[a]])
             for b in range(a + 1, len(names)):
+                if len(clouds[names[b]]) == 0:
+                    continue  # a strip narrower than 4 cm (a waistband) has no interior point
                 close = ta.query(clouds[names[b]])[0] < 0.003
                 assert close.mean() < 0.05, (names[a], names[b], close.mean())
 

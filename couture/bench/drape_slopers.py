@@ -60,13 +60,30 @@ def seam_gaps(mesh, x: np.ndarray) -> np.ndarray:
     return np.linalg.norm(x[e] - ((1 - w)[:, None] * x[a] + w[:, None] * x[b]), axis=1)
 
 
-def coarse_mesh(kind: str, vertices: int, params: dict | None = None):
-    """Drafted pattern and its coarse mesh (placed) for a sloper."""
+def body_params(kind: str, body: str) -> dict[str, float]:
+    """The sloper's body-measurement options set to ``body``'s measurements
+    (``couture.bodies.measured``): waist and hip girth, waist to hip and waist
+    to crotch heights, where the sloper has them (clipped to their ranges)."""
+    from couture import bodies
+    from couture.pattern import SLOPERS
+
+    m = bodies.measured(body)
+    values = {
+        "waist_girth": m["waist_girth"],
+        "hip_girth": m["hip_girth"],
+        "waist_to_hip": m["waist_y"] - m["hip_y"],
+        "crotch_depth": m["waist_y"] - m["crotch_y"],
+    }
+    return {o.name: float(np.clip(values[o.name], o.min, o.max)) for o in SLOPERS[kind].options if o.name in values}
+
+
+def coarse_mesh(kind: str, vertices: int, params: dict | None = None, body: str = "default"):
+    """Drafted pattern and its coarse mesh (placed on ``body``) for a sloper."""
     from couture.pattern.validate import validate
     from couture.remesh.meshing import mesh_pattern
-    from schemas.design import Design, Sloper
+    from schemas.design import Body, Design, Sloper
 
-    design = Design(sloper=Sloper(kind=kind, params=params or {}))
+    design = Design(sloper=Sloper(kind=kind, params=params or {}), body=Body(name=body))
     drafted = validate(design)
     return design, drafted, mesh_pattern(drafted, vertices, level="coarse")
 
@@ -78,16 +95,18 @@ def drape(
     max_seconds: float = 60.0,
     tol: float = 1e-4,
     params: dict | None = None,
+    body: str = "default",
 ) -> tuple[DrapeRow, np.ndarray, object]:
-    """Drape one sloper (its default options, overridden by ``params``); returns
-    the best row (lowest residual), its x and the mesh."""
+    """Drape one sloper (its default options, overridden by ``params``) on
+    ``body`` (a name of ``couture.bodies``); returns the best row (lowest
+    residual), its x and the mesh."""
     from couture.cloth.body import load_mannequin_sdf
     from couture.cloth.model import ClothModel, Scene
     from couture.solvers import get_solver
 
-    design, _, res = coarse_mesh(kind, vertices, params)
+    design, _, res = coarse_mesh(kind, vertices, params, body)
     mesh = res.mesh
-    sdf = load_mannequin_sdf(verbose=False)
+    sdf = load_mannequin_sdf(verbose=False, name=body)
     model = ClothModel(mesh, design.fabric, Scene(body=sdf, friction=True))
     x0 = mesh.x0.copy()
     g0 = seam_gaps(mesh, x0)
@@ -128,7 +147,7 @@ def drape(
     return best[0], best[1], mesh
 
 
-def render(path: Path, kind: str, mesh, x: np.ndarray, title: str) -> None:
+def render(path: Path, kind: str, mesh, x: np.ndarray, title: str, body: str = "default") -> None:
     """Front and side views of the body and the garment (matplotlib, headless)."""
     import matplotlib
 
@@ -138,7 +157,7 @@ def render(path: Path, kind: str, mesh, x: np.ndarray, title: str) -> None:
 
     from couture.cloth.body import load_mannequin_mesh
 
-    V, F = load_mannequin_mesh()
+    V, F = load_mannequin_mesh(body)
     fig = plt.figure(figsize=(10, 8))
     for k, (elev, azim, label) in enumerate(((0, -90, "front"), (0, 0, "side"))):
         ax = fig.add_subplot(1, 2, k + 1, projection="3d")
@@ -174,6 +193,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--solvers", nargs="*", default=["newton", "kinetic"])
     ap.add_argument("--max-seconds", type=float, default=60.0)
     ap.add_argument("--tol", type=float, default=1e-4)
+    ap.add_argument(
+        "--body", default="default", help="body to drape on (couture bodies), each sloper drafted for its measurements"
+    )
     add_out_arg(ap)
     ap.add_argument("--no-png", action="store_true")
     args = ap.parse_args(argv)
@@ -185,7 +207,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(hdr)
     for kind in args.slopers:
-        row, x, mesh = drape(kind, args.vertices, args.solvers, args.max_seconds, args.tol)
+        params = body_params(kind, args.body) if args.body != "default" else None
+        row, x, mesh = drape(kind, args.vertices, args.solvers, args.max_seconds, args.tol, params, args.body)
         rows.append(row)
         print(
             f"{row.sloper:9s} {row.solver:8s} {row.vertices:5d} {row.gap0_median_cm:7.1f}/{row.gap0_max_cm:<8.1f} "
@@ -201,6 +224,7 @@ def main(argv: list[str] | None = None) -> int:
                 mesh,
                 x,
                 f"{kind}: {row.solver}, residual {row.residual:.1e}, {row.seconds:.0f} s",
+                args.body,
             )
     write_results(
         out,

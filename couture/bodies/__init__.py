@@ -104,6 +104,13 @@ def table() -> list[dict[str, Any]]:
     return rows
 
 
+def measured(name: str = "default") -> dict[str, float]:
+    """A body's measurements [m] (``couture.bodies.measure``): girths and landmark heights."""
+    if check_name(name) == "default":
+        return _default_measured()
+    return dict(index()["bodies"][name]["measured"])
+
+
 @lru_cache(maxsize=1)
 def _default_measured() -> dict[str, float]:
     from couture.bodies.measure import measure

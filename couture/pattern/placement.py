@@ -166,6 +166,13 @@ def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str,
 
     origin = np.asarray(ring.origin, float)
     a = UP if ring.axis is None else np.asarray(ring.axis, float) / np.linalg.norm(ring.axis)
+    landmark = getattr(ring, "landmark", None)
+    if landmark is not None and body != "default":
+        # the drafted origin is at the default body's landmark height: move it along the axis to this body's
+        from couture.bodies import measured
+
+        shift = measured(body)[f"{landmark}_y"] - measured("default")[f"{landmark}_y"]
+        origin = origin + a * (shift / a[1])
     f = FRONT if ring.ref is None else np.asarray(ring.ref, float)
     f = f - (f @ a) * a
     f = f / np.linalg.norm(f)

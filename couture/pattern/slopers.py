@@ -66,6 +66,10 @@ class Ring:
     """material y placed at its own axial coordinate (the rows above and below
     it shorten toward it along the axis, keeping their meridian lengths); None:
     the top of the ring's panels"""
+    landmark: str | None = None
+    """'waist': ``origin`` lies at the default mannequin's waist height, and on
+    another body the ring moves along its axis to that body's waist
+    (``couture.bodies.measured``); None: placed where drafted on every body"""
 
 
 @dataclass
@@ -768,6 +772,11 @@ def draft_shirt_set_in(p: dict[str, float]) -> SloperDraft:
 
 # ---------------------------------------------------------------- trousers
 
+RISE_EASE = 0.06
+"""[m] default rise ease of the trousers (``draft_trousers``)"""
+BAND_HEIGHT = 0.035
+"""[m] default height of the trousers' waistband piece (``draft_trousers``)"""
+
 TROUSERS_OPTIONS = (
     O.WAIST,
     O.HIP,
@@ -785,31 +794,58 @@ TROUSERS_OPTIONS = (
         "1",
         "elastic waistband: the waist edge's rest length as a fraction of waist girth + ease (1: none)",
     ),
+    opt(
+        "band_height",
+        BAND_HEIGHT,
+        0.02,
+        0.08,
+        "m",
+        "height of the elastic waistband piece sewn to the waist edge, centred on the waist",
+    ),
     opt("hip_ease", 0.05, 0.0, 0.15, "m", "added to the hip girth"),
+    opt(
+        "rise_ease",
+        RISE_EASE,
+        0.0,
+        0.10,
+        "m",
+        "added to the crotch depth: the crotch point hangs this far below the body's crotch",
+    ),
     opt("hem_ease", 0.10, 0.0, 0.40, "m", "added to the ankle girth at the hem"),
     opt("crotch_extension", 0.05, 0.02, 0.10, "m", "how far the crotch point reaches past the centre line"),
 )
 
 
 def draft_trousers(p: dict[str, float]) -> SloperDraft:
-    """Trousers: front and back panel per leg. Each panel: material x grows from
-    the centre (crotch) edge to the side seam for the left leg (mirrored for
-    the right leg so every outline stays counter-clockwise).
+    """Trousers: front and back panel per leg, and a waistband. Each leg
+    panel: material x grows from the centre (crotch) edge to the side seam for
+    the left leg (mirrored for the right leg so every outline stays
+    counter-clockwise).
 
-    The waist edge is an elastic waistband: its rest length is ``waistband``
-    times the waist girth + ease, shorter than the body's waist, so it stays
-    stretched around the waist and its hoop tension presses the garment onto
-    the body (the way an elastic is cut shorter than the waist it grips). The
-    sides run from it to the hip width, so the grip fades toward the hip. With
-    no elastic (``waistband`` 1) the default 20 N/m fabric cannot carry the
-    trousers' weight at the waist and they slide down to the upper hip."""
-    h, cd, L = p["waist_to_hip"], p["crotch_depth"], p["length"]
+    The waistband is elastic: its rest length is ``waistband`` times the waist
+    girth + ease, shorter than the body's waist, so it stays stretched around
+    the waist and its hoop tension presses the garment onto the body (the way
+    an elastic is cut shorter than the waist it grips). It is a piece of its
+    own (``band_height`` high, centred on the waist, front and back joined at
+    the sides) wrapped round the torso, so it is placed snug on the body at the
+    natural waist; the leg panels' waist edges, cut to the same length, are
+    sewn to its lower edge, and their sides run from there to the hip width,
+    so the grip fades toward the hip. The crotch point hangs ``rise_ease``
+    below the body's crotch: the centre seam runs round the belly and seat, so
+    a crotch drafted at the body's crotch depth is too short, bears up into the
+    crotch and pulls the waist down (by 1.4 N at ``rise_ease`` 0, more than the
+    trousers' 1.3 N weight). With no elastic (``waistband`` 1) the default 20 N/m fabric cannot carry the trousers'
+    weight at the waist and they slide down toward the hip."""
+    bh = p["band_height"]
+    # the band covers the waist +- bh/2: the legs' panels start bh/2 below it
+    h, L = p["waist_to_hip"] - bh / 2, p["length"] - bh / 2
+    cd = p["crotch_depth"] + p["rise_ease"] - bh / 2  # the drafted rise
     ww = p["waistband"] * (p["waist_girth"] + p["waist_ease"]) / 4
     wh = (p["hip_girth"] + p["hip_ease"]) / 4
     ext = p["crotch_extension"]
     hem_w = (p["ankle_girth"] + p["hem_ease"]) / 2
     thigh_w = (p["thigh_girth"] + 0.06) / 2
-    hh = min(h, 0.9 * cd)  # the hip line stays above the crotch
+    hh = min(h, 0.9 * (p["crotch_depth"] - bh / 2))  # the hip line stays above the body's crotch
     panels = []
     # left-leg front panel, centre at x = 0 edge, side seam at x = +wh
     Wc = np.array([0.0, 0.0])  # centre waist
@@ -860,13 +896,14 @@ def draft_trousers(p: dict[str, float]) -> SloperDraft:
         ("front_left", "center", "front_right", "center"),
         ("back_left", "center", "back_right", "center"),
     ]
-    rings = []
+    rings: list[Ring] = []
+    _waistband(panels, seams, rings, 2 * ww, bh)
     for leg, sign in (("left", 1.0), ("right", -1.0)):
         a = M.LEFT_LEG_AXIS * np.array([sign, 1.0, 1.0])
         a = a / np.linalg.norm(a)
         top = M.LEFT_LEG_TOP * np.array([sign, 1.0, 1.0])
         # axis point at the waist line (material y = 0)
-        origin = top + a * ((M.WAIST_Y - top[1]) / a[1])
+        origin = top + a * ((M.WAIST_Y - bh / 2 - top[1]) / a[1])
         f = np.array([0.0, 0.0, 1.0]) - a[2] * a
         f /= np.linalg.norm(f)
         # one leg's front and back panels wrap its leg (with its half of the
@@ -887,9 +924,56 @@ def draft_trousers(p: dict[str, float]) -> SloperDraft:
                 margin=0.02,
                 section=f"{leg}_leg",
                 gap_at=float(np.arctan2(inner @ b, inner @ f)),
+                landmark="waist",  # the waistband sits at each body's own waist
             )
         )
     return SloperDraft(panels, seams, rings)
+
+
+def _waistband(panels: list[PanelDef], seams: list, rings: list[Ring], half: float, bh: float) -> None:
+    """The trousers' waistband: a front and a back piece, each ``half`` [m] long
+    and ``bh`` high, joined at the side seams, wrapped round the torso at the
+    waist (a closed ring: the band is placed snug on the body, its shortfall
+    shared by its side seams) and sewn along its lower edge to the four leg
+    panels' waist edges. Material +x runs with the wrap angle (front: toward
+    the left leg, back: from the left leg to the right)."""
+    x0, x1 = -half / 2, half / 2
+    for name, lo_half, hi_half in (
+        ("band_front", "waist_right", "waist_left"),
+        ("band_back", "waist_left", "waist_right"),
+    ):
+        left_side = "side_left" if name == "band_front" else "side_right"
+        right_side = "side_right" if name == "band_front" else "side_left"
+        panels.append(
+            PanelDef(
+                name,
+                [
+                    SegDef(lo_half, [line(np.array([x0, 0.0]), np.array([0.0, 0.0]))]),
+                    SegDef(hi_half, [line(np.array([0.0, 0.0]), np.array([x1, 0.0]))]),
+                    SegDef(left_side, [line(np.array([x1, 0.0]), np.array([x1, bh]))]),
+                    # the casing: the top edge turned down over the elastic, a hem
+                    SegDef("hem", [line(np.array([x1, bh]), np.array([x0, bh]))]),
+                    SegDef(right_side, [line(np.array([x0, bh]), np.array([x0, 0.0]))]),
+                ],
+            )
+        )
+    seams += [
+        ("band_front", "side_left", "band_back", "side_left"),
+        ("band_front", "side_right", "band_back", "side_right"),
+        ("band_front", "waist_left", "front_left", "waist"),
+        ("band_front", "waist_right", "front_right", "waist"),
+        ("band_back", "waist_left", "back_left", "waist"),
+        ("band_back", "waist_right", "back_right", "waist"),
+    ]
+    rings.append(
+        Ring(
+            ["band_front", "band_back"],
+            [0.0, np.pi],
+            np.array([0.0, M.WAIST_Y - bh / 2, M.TORSO_AXIS_Z]),
+            section="torso",
+            landmark="waist",
+        )
+    )
 
 
 def _cap_radius(ym):
