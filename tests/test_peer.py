@@ -1,0 +1,63 @@
+"""The peer solver (NVIDIA newton's SolverStyle3D, ``get_solver("style3d")``): its drape of
+the small strip over the sphere lies close to our Newton drape, reported in our residual
+measure; the bench's time-to-same-error ratio picks the fastest of our answers at least as
+accurate. newton is in the test extra, so these always run."""
+
+import numpy as np
+import pytest
+
+from couture.bench.sensitivity import strip_over_sphere
+from couture.bench.tradeoff import LINEAR_FRICTIONLESS, PEER, peer_ratios
+from couture.solvers import get_solver
+
+
+@pytest.fixture(scope="module")
+def drapes():
+    model = strip_over_sphere(16, 6)
+    ours = get_solver("newton").solve(model, model.mesh.x0.copy(), tol=1e-6, max_seconds=60)
+    assert ours.converged
+    peer = get_solver(PEER).solve(model, model.mesh.x0.copy(), tol=1e-2, max_seconds=120)
+    return model, ours, peer
+
+
+def test_peer_drape_close_to_ours(drapes):
+    model, ours, peer = drapes
+    assert peer.method == PEER and peer.converged, peer.diagnosis
+    assert peer.stats["own_residual"] <= 1e-2
+    assert peer.stats["contact"] == "sphere"
+    # pins held where we hold them
+    pinned = ~model.free
+    np.testing.assert_allclose(peer.x[pinned], model.mesh.x0[pinned], atol=1e-6)
+    dist = np.linalg.norm(peer.x - ours.x, axis=1)
+    start = np.linalg.norm(model.mesh.x0 - ours.x, axis=1)
+    rms, rms_start = np.sqrt(np.mean(dist**2)), np.sqrt(np.mean(start**2))
+    # its own model (Baraff-Witkin stretch without Poisson coupling, its contact law):
+    # within 3 cm RMS of ours, and far closer than the flat start was
+    assert rms < 0.03, rms
+    assert rms < 0.25 * rms_start, (rms, rms_start)
+    # it drapes over the sphere: nothing inside it, hanging below its top
+    phi, _ = model.body.phi_grad(peer.x)
+    assert phi.min() > 0.0
+    assert peer.x[:, 1].min() < 0.0
+    # reported in OUR measure, finite, and it is model.relative_residual at its answer
+    assert np.isfinite(peer.residual)
+    assert peer.residual == pytest.approx(model.relative_residual(peer.x))
+
+
+def _row(method, label, latency, rms):
+    return {"method": method, "label": label, "latency_s": latency, "rms_mm": rms}
+
+
+def test_peer_ratios_fastest_of_ours_at_least_as_accurate():
+    rows = [
+        _row("none", "none fine", 0.0, 0.5),  # never ours: the unchanged old drape
+        _row(LINEAR_FRICTIONLESS, "nofric fine", 0.001, 0.01),  # diagnostic, not ours
+        _row("linear", "linear fine", 0.01, 3.0),
+        _row("newton", "newton 1e-02 fine", 0.5, 0.2),
+        _row("kinetic", "kinetic 1e-02 fine", 0.2, 0.9),
+        _row(PEER, "style3d 1e-01 fine", 4.0, 1.0),
+        _row(PEER, "style3d 1e-02 fine", 8.0, 0.1),
+    ]
+    a, b = peer_ratios(rows)
+    assert a["ours"] == "kinetic 1e-02 fine" and a["ours_over_peer"] == pytest.approx(0.2 / 4.0)
+    assert b["ours"] is None and b["ours_over_peer"] is None
