@@ -58,6 +58,12 @@ def test_peer_ratios_fastest_of_ours_at_least_as_accurate():
         _row(PEER, "style3d 1e-01 fine", 4.0, 1.0),
         _row(PEER, "style3d 1e-02 fine", 8.0, 0.1),
     ]
+    rows[-2]["build_s"] = 2.0
     a, b = peer_ratios(rows)
     assert a["ours"] == "kinetic 1e-02 fine" and a["ours_over_peer"] == pytest.approx(0.2 / 4.0)
-    assert b["ours"] is None and b["ours_over_peer"] is None
+    assert a["ours_over_peer_steps"] == pytest.approx(0.2 / 2.0)
+    assert a["solver_ours"] == "kinetic 1e-02 fine"
+    assert b["ours"] is None and b["ours_over_peer"] is None and b["solver_ours"] is None
+    rows[2]["rms_mm"] = 0.5  # the linear prediction becomes accurate enough: the fastest of ours
+    a, _ = peer_ratios(rows)
+    assert a["ours"] == "linear fine" and a["solver_ours"] == "kinetic 1e-02 fine"
