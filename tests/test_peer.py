@@ -67,3 +67,32 @@ def test_peer_ratios_fastest_of_ours_at_least_as_accurate():
     rows[2]["rms_mm"] = 0.5  # the linear prediction becomes accurate enough: the fastest of ours
     a, _ = peer_ratios(rows)
     assert a["ours"] == "linear fine" and a["solver_ours"] == "kinetic 1e-02 fine"
+
+
+def test_seams_welded_as_style3d_sews_them():
+    from couture.bench.tradeoff import EXAMPLES
+    from couture.cloth.model import ClothModel
+    from couture.pattern.io import load_design
+    from couture.pattern.validate import validate
+    from couture.remesh import mesh_pattern
+    from couture.solvers.peer import weld_seams
+    from couture.solvers.service import scene_from_design
+
+    design = load_design(EXAMPLES / "default_skirt.json")
+    mesh = mesh_pattern(validate(design), 150, level="coarse").mesh
+    model = ClothModel(mesh, design.fabric, scene_from_design(design))
+    weld, unwelded = weld_seams(model)
+    assert weld.shape == (model.n,) and weld.max() + 1 < model.n
+    # no triangle loses a corner to a weld
+    t = weld[mesh.tris]
+    assert np.all((t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 0] != t[:, 2]))
+    # each sewn emitter shares its particle with the nearer end of its edge
+    a, b = mesh.seam_edges[:, 0], mesh.seam_edges[:, 1]
+    near = np.where(mesh.seam_weights <= 0.5, a, b)
+    sewn = weld[mesh.seam_emitters] == weld[near]
+    assert np.count_nonzero(~sewn) == unwelded
+    assert unwelded <= 0.1 * len(mesh.seam_emitters)
+    # only seam vertices are welded: the others keep a particle of their own
+    seam_vertices = np.unique(np.r_[mesh.seam_emitters, near])
+    others = np.setdiff1d(np.arange(model.n), seam_vertices)
+    assert len(np.unique(weld[others])) == len(others)

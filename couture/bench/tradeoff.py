@@ -41,8 +41,8 @@ installed; otherwise the bench prints that it is skipped and goes on):
 NVIDIA newton's ``SolverStyle3D`` (``couture.solvers.peer``), on the fine
 mesh at the edited rest shape from the old drape, stopped at each
 ``--peer-tols`` of its own stationarity measure (``||M v|| / (dt ||F_g||)``),
-errors against the same reference. Scenes whose model sews seams (the
-garments) skip it: Style3D's step has no seam term. For each peer point the
+errors against the same reference (garment seams welded as Style3D sews
+them, see ``couture.solvers.peer``). For each peer point the
 JSON holds ``ours_over_peer``: the latency of the fastest of our answers
 (solvers and predictors at either level; not ``none``, the unchanged old
 drape, nor the diagnostic frictionless linearisation) whose RMS error is at
@@ -427,33 +427,30 @@ def measure_scene(
     peer: dict = {"tols": list(peer_tols)}
     if peer_tols:
         fine = scene.levels["fine"]
-        if getattr(fine.model, "has_seams", False):
-            peer["skipped"] = "the scene sews seams; Style3D's step has no seam term"
-            log(f"  {scene.name:6s} peer {PEER} skipped: {peer['skipped']}")
-        else:
-            for tol in peer_tols:
-                m = fine.model_at(d)
-                r = get_solver(PEER).solve(m, fine.x_eq.copy(), tol=tol, max_seconds=seconds)
-                record(
-                    PEER,
-                    "fine",
-                    tol,
-                    float(r.wall_time),
-                    1,
-                    r.x,
-                    converged=bool(r.converged),
-                    solver_residual=float(r.residual),
-                    own_residual=float(r.stats["own_residual"]),
-                    build_s=float(r.stats["build_s"]),
-                    iterations=int(r.iterations),
-                    diagnosis=r.diagnosis,
-                )
-            peer["ratios"] = peer_ratios(rows)
-            for q in peer["ratios"]:
-                for key in ("", "solver_"):
-                    r = q[f"{key}ours_over_peer"]
-                    ratio = "none of ours as accurate" if r is None else f"{r:.3g}"
-                    log(f"  {scene.name:6s} {q['peer']:22s} vs {q[f'{key}ours'] or '-':22s} ours/peer time {ratio}")
+        for tol in peer_tols:
+            m = fine.model_at(d)
+            r = get_solver(PEER).solve(m, fine.x_eq.copy(), tol=tol, max_seconds=seconds)
+            record(
+                PEER,
+                "fine",
+                tol,
+                float(r.wall_time),
+                1,
+                r.x,
+                converged=bool(r.converged),
+                solver_residual=float(r.residual),
+                own_residual=float(r.stats["own_residual"]),
+                build_s=float(r.stats["build_s"]),
+                seams_unwelded=int(r.stats["seams_unwelded"]),
+                iterations=int(r.iterations),
+                diagnosis=r.diagnosis,
+            )
+        peer["ratios"] = peer_ratios(rows)
+        for q in peer["ratios"]:
+            for key in ("", "solver_"):
+                v = q[f"{key}ours_over_peer"]
+                ratio = "none of ours as accurate" if v is None else f"{v:.3g}"
+                log(f"  {scene.name:6s} {q['peer']:22s} vs {q[f'{key}ours'] or '-':22s} ours/peer time {ratio}")
     return {
         "scene": scene.name,
         "description": scene.description,

@@ -31,10 +31,17 @@ It is a model of its own, like :mod:`couture.solvers.verlet`, built from the sam
   ``fabric.friction_kinetic`` when the scene has friction, else 0;
 - pins: particles made inactive (``ParticleFlags.ACTIVE`` cleared).
 
-Seams: ``SolverStyle3D.step`` has no spring or seam term (stretch, bending and
-contact only), so a model whose scene sews seams is refused with a clear error
-(the sheet scenes have none). Self-collision is Style3D's own (on, as users
-run it).
+Seams, as Style3D sews them: its 3D mesh is welded along the seams while the
+panel (2D) triangles stay apart (``add_cloth_mesh`` takes separate 3D and panel
+indices), and ``step`` has no spring or seam term. So each seam emitter ``e``
+(sewn to the point ``(1-w) a + w b`` of the other side's edge) is welded to the
+nearer end of that edge (``a`` if w <= ½, else ``b``; classes by union-find,
+a weld that would put two corners of one triangle together is left out and
+counted in ``stats['seams_unwelded']``); a welded particle starts at its
+vertices' mean and gives all of them its position. Our seams are not
+conforming (the sides have different vertex counts): the weld moves a seam
+point by up to half an edge along the seam, and OUR seam springs (5000 mu)
+see that as a residual. Self-collision is Style3D's own (on, as users run it).
 
 Quasi-static solve: implicit (projective-dynamics) steps of ``dt`` with
 ``iterations`` nonlinear x ``linear_iterations`` PCG iterations each, plus
@@ -121,11 +128,6 @@ class PeerModel:
     def __init__(self, model, iterations: int, linear_iterations: int):
         from couture.cloth.model import BEND_CONSTANT, GRAVITY
 
-        if getattr(model, "has_seams", False):
-            raise ValueError(
-                "the style3d peer cannot sew seams: newton's SolverStyle3D.step has no spring or seam term "
-                "(build the model with Scene(seams=False), or use a sheet)"
-            )
         newton, wp = _import()
         self.wp = wp
         mesh = model.mesh
@@ -136,23 +138,26 @@ class PeerModel:
             newton.solvers.SolverStyle3D.register_custom_attributes(b)
             from newton.solvers import style3d
 
-            tris = np.asarray(mesh.tris, np.int64).ravel().tolist()
+            self.weld, self.unwelded = weld_seams(model) if getattr(model, "has_seams", False) else (None, 0)
+            tris = np.asarray(mesh.tris, np.int64)
+            indices = tris if self.weld is None else self.weld[tris]
             style3d.add_cloth_mesh(
                 b,
                 pos=wp.vec3(0.0, 0.0, 0.0),
                 rot=wp.quat_identity(),
                 vel=wp.vec3(0.0, 0.0, 0.0),
-                vertices=np.asarray(mesh.x0, float).tolist(),
-                indices=tris,
+                vertices=self.to_peer(np.asarray(mesh.x0, float)).tolist(),
+                indices=indices.ravel().tolist(),
                 panel_verts=np.asarray(model.X, float).tolist(),
-                panel_indices=tris,
+                panel_indices=tris.ravel().tolist(),
                 density=float(model.area_density),
                 particle_radius=float(model.contact_offset),
                 tri_aniso_ke=wp.vec3(stretch, stretch, float(model.mu)),
                 edge_aniso_ke=wp.vec3(1.0, 1.0, 1.0),
             )
-            if b.particle_count != model.n:
-                raise ValueError(f"newton built {b.particle_count} particles for {model.n} vertices")
+            n_peer = model.n if self.weld is None else int(self.weld.max()) + 1
+            if b.particle_count != n_peer:
+                raise ValueError(f"newton built {b.particle_count} particles for {n_peer} (welded) vertices")
             if len(b.tri_indices) != len(mesh.tris):
                 raise ValueError("newton dropped degenerate or inverted rest triangles (2D panel orientation)")
             mu = float(model.friction_kinetic) if "friction" in model.terms else 0.0
@@ -164,7 +169,8 @@ class PeerModel:
             ebp[:, 0] = BEND_CONSTANT * model.bend_stiffness
             m.edge_bending_properties.assign(ebp)
             flags = m.particle_flags.numpy()
-            flags[~model.free] &= ~int(newton.ParticleFlags.ACTIVE)
+            pinned = np.nonzero(~model.free)[0]
+            flags[pinned if self.weld is None else self.weld[pinned]] &= ~int(newton.ParticleFlags.ACTIVE)
             m.particle_flags.assign(flags)
             m.soft_contact_ke = float(model.contact_stiffness)
             m.soft_contact_kd = 0.0
@@ -179,6 +185,56 @@ class PeerModel:
             self.pipeline = newton.CollisionPipeline(m)
             self.contacts = self.pipeline.contacts()
         self.mass = m.particle_mass.numpy().astype(np.float64)
+
+    def to_peer(self, x: np.ndarray) -> np.ndarray:
+        """Our positions (n, 3) -> the peer's particles: a welded particle at its vertices' mean."""
+        if self.weld is None:
+            return x
+        k = int(self.weld.max()) + 1
+        out = np.zeros((k, 3))
+        np.add.at(out, self.weld, x)
+        return out / np.bincount(self.weld, minlength=k)[:, None]
+
+    def from_peer(self, xp: np.ndarray) -> np.ndarray:
+        return xp if self.weld is None else xp[self.weld]
+
+
+def weld_seams(model) -> tuple[np.ndarray, int]:
+    """(particle index per vertex, seams left unwelded): each seam emitter welded to the
+    nearer end of its edge, unless that would join two corners of one triangle."""
+    mesh = model.mesh
+    n = model.n
+    parent = np.arange(n)
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    tris = np.asarray(mesh.tris, np.int64)
+    nbrs: list[set[int]] = [set() for _ in range(n)]
+    for t in tris:
+        for i in t:
+            nbrs[i].update(int(j) for j in t if j != i)
+    members: dict[int, set[int]] = {i: {i} for i in range(n)}
+    unwelded = 0
+    for e, a, bb, w in zip(
+        mesh.seam_emitters, mesh.seam_edges[:, 0], mesh.seam_edges[:, 1], mesh.seam_weights, strict=True
+    ):
+        ra, rb = root(int(e)), root(int(a if w <= 0.5 else bb))
+        if ra == rb:
+            continue
+        A, B = members[ra], members[rb]
+        if any(nbrs[i] & B for i in A):
+            unwelded += 1
+            continue
+        parent[rb] = ra
+        members[ra] = A | B
+        del members[rb]
+    roots = np.array([root(i) for i in range(n)])
+    _, weld = np.unique(roots, return_inverse=True)
+    return weld.astype(np.int64), unwelded
 
 
 class Style3DSolver:
@@ -216,6 +272,7 @@ class Style3DSolver:
         wp = pm.wp
         stats["build_s"] = time.perf_counter() - t_start
         stats["contact"] = pm.body_kind
+        stats["seams_unwelded"] = pm.unwelded
         stats["dt"] = self.dt
         mass = pm.mass
         gnorm = float(np.linalg.norm(np.asarray(model.gravity_force))) if "gravity" in model.terms else 0.0
@@ -229,7 +286,7 @@ class Style3DSolver:
         it = 0
         x_good = x.copy()
         with wp.ScopedDevice("cpu"):
-            s0.particle_q.assign(x.astype(np.float32))
+            s0.particle_q.assign(pm.to_peer(x).astype(np.float32))
             s0.particle_qd.zero_()
             while True:
                 pm.pipeline.collide(s0, pm.contacts)
@@ -246,7 +303,7 @@ class Style3DSolver:
                     ke_prev2 = ke_prev = 0.0
                 else:
                     ke_prev2, ke_prev = ke_prev, ke
-                xq = s0.particle_q.numpy().astype(np.float64)
+                xq = pm.from_peer(s0.particle_q.numpy().astype(np.float64))
                 now = time.perf_counter() - t_start
                 if not np.isfinite(xq).all() or not np.isfinite(own):
                     diag = f"diverged: non-finite state at step {it}"
