@@ -138,7 +138,10 @@ class PeerModel:
             newton.solvers.SolverStyle3D.register_custom_attributes(b)
             from newton.solvers import style3d
 
-            self.weld, self.unwelded = weld_seams(model) if getattr(model, "has_seams", False) else (None, 0)
+            self.weld: np.ndarray | None = None
+            self.unwelded = 0
+            if getattr(model, "has_seams", False):
+                self.weld, self.unwelded = weld_seams(model)
             tris = np.asarray(mesh.tris, np.int64)
             indices = tris if self.weld is None else self.weld[tris]
             style3d.add_cloth_mesh(
