@@ -96,3 +96,21 @@ def test_seams_welded_as_style3d_sews_them():
     seam_vertices = np.unique(np.r_[mesh.seam_emitters, near])
     others = np.setdiff1d(np.arange(model.n), seam_vertices)
     assert len(np.unique(weld[others])) == len(others)
+
+
+def test_without_newton_clear_error_and_bench_skips(monkeypatch):
+    import sys
+
+    from couture.bench import tradeoff
+    from couture.solvers import peer
+
+    # newton made unimportable in this process (None in sys.modules: import raises ImportError)
+    monkeypatch.setitem(sys.modules, "newton", None)
+    assert not peer.available()
+    with pytest.raises(ImportError, match=r"couture\[peer\]"):
+        get_solver(PEER)
+    lines: list[str] = []
+    res = tradeoff.run([], "small", (1e-2,), repeats=1, seconds=2.0, log=lines.append, peer_tols=(1e-1,))
+    assert any("skipped" in line and "couture[peer]" in line for line in lines), lines
+    assert res["peer"]["tols"] == [] and "skipped" in res["peer"]["note"]
+    assert PEER not in res["compile_s"]
