@@ -245,15 +245,20 @@ class Style3DSolver:
 
     name = "style3d"
 
-    def __init__(self, *, dt: float = 1.0 / 60.0, iterations: int = 10, linear_iterations: int = 10):
+    def __init__(
+        self, *, dt: float = 1.0 / 60.0, iterations: int = 10, linear_iterations: int = 10, stall_steps: int = 150
+    ):
         """dt [s]: implicit step; iterations, linear_iterations: Style3D's nonlinear and PCG
-        iterations per step (its defaults)."""
+        iterations per step (its defaults); stall_steps: stop (not converged) when the own
+        residual has not fallen below 0.9 of its best for this many steps (float32 contact
+        jitter on garments stalls it around 1e-3 to 1e-2)."""
         if dt <= 0 or iterations < 1 or linear_iterations < 1:
             raise ValueError(f"bad style3d options: dt {dt} s, iterations {iterations}, linear {linear_iterations}")
         _import()
         self.dt = float(dt)
         self.iterations = int(iterations)
         self.linear_iterations = int(linear_iterations)
+        self.stall_steps = int(stall_steps)
 
     def solve(
         self,
@@ -287,6 +292,7 @@ class Style3DSolver:
         own = np.inf
         ke_prev2 = ke_prev = 0.0
         it = 0
+        best, best_it = np.inf, 0
         x_good = x.copy()
         with wp.ScopedDevice("cpu"):
             s0.particle_q.assign(pm.to_peer(x).astype(np.float32))
@@ -315,6 +321,11 @@ class Style3DSolver:
                 history.append((now, own))
                 if own <= tol:
                     converged = True
+                    break
+                if own < 0.9 * best:
+                    best, best_it = own, it
+                elif it - best_it >= self.stall_steps:
+                    diag = f"stalled at own residual {own:.3g} (best {best:.3g} at step {best_it}; tol {tol:.3g})"
                     break
                 if callback is not None and callback(it, xq, own):
                     diag = "stopped by callback"
