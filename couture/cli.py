@@ -46,7 +46,7 @@ def _parser() -> argparse.ArgumentParser:
         "--solver",
         nargs="+",
         default=["kinetic"],
-        choices=["kinetic", "newton", "verlet"],
+        choices=["kinetic", "newton", "verlet", "style3d"],
         help="solver nodes to run (several for side-by-side comparison)",
     )
     up.add_argument(
@@ -135,7 +135,7 @@ def _parser() -> argparse.ArgumentParser:
         help="[s] to wait for the final fine drape (default 240: longer than the solver's own caps, "
         "so a slow solve ends with its diagnosis, exit 3, rather than a timeout, exit 5)",
     )
-    dp.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet"])
+    dp.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet", "style3d"])
     dp.add_argument(
         "--solver-max-seconds",
         type=float,
@@ -220,7 +220,7 @@ def _parser() -> argparse.ArgumentParser:
         "--solver",
         action="append",
         default=None,
-        choices=["kinetic", "newton", "verlet"],
+        choices=["kinetic", "newton", "verlet", "style3d"],
         help="solver node(s) to start and fan the solves out to (repeatable; default newton); with --connect: "
         "which live solver-<name> nodes to use (default every live one)",
     )

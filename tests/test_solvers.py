@@ -30,7 +30,7 @@ from couture.solvers.linalg import (
 
 
 def test_registry():
-    assert set(SOLVERS) == {"kinetic", "newton", "verlet"}
+    assert set(SOLVERS) == {"kinetic", "newton", "verlet", "style3d"}
     for name in SOLVERS:
         assert get_solver(name).name == name
     with pytest.raises(ValueError, match="unknown solver"):

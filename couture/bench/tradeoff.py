@@ -36,6 +36,21 @@ runs (predictions under 1 s, solves under ``--repeat-below`` s; one run
 otherwise), after a warm-up that loads or compiles every numba kernel; the
 warm-up's extra time is reported as ``compile_s`` per component.
 
+The peer (``--peer``, on by default when the ``couture[peer]`` extra is
+installed; otherwise the bench prints that it is skipped and goes on):
+NVIDIA newton's ``SolverStyle3D`` (``couture.solvers.peer``), on the fine
+mesh at the edited rest shape from the old drape, stopped at each
+``--peer-tols`` of its own stationarity measure (``||M v|| / (dt ||F_g||)``),
+errors against the same reference (garment seams welded as Style3D sews
+them, see ``couture.solvers.peer``). For each peer point the
+JSON holds ``ours_over_peer``: the latency of the fastest of our answers
+(solvers and predictors at either level; not ``none``, the unchanged old
+drape, nor the diagnostic frictionless linearisation) whose RMS error is at
+most the peer point's RMS error, divided by the peer point's latency (< 1:
+we are faster; the goal is <= 0.2, 5x less time); null when none of ours is
+that accurate; ``solver_ours_over_peer`` the same with our solvers only, and
+``*_steps`` over the peer's time less its model build (see ``peer_ratios``).
+
 Writes ``tradeoff.json`` and ``tradeoff.png`` (log-log latency vs RMS error
 per scene, Pareto front as a step line) to ``--out`` and prints one line per
 measurement.
@@ -63,6 +78,9 @@ SOLVER_NAMES = ("newton", "kinetic", "verlet")
 PREDICTORS = ("linear", "gmls", "mls")
 REFERENCE_TOLS = (1e-6, 1e-5, 1e-4)
 SCENES = ("sheet", "skirt", "dress")
+PEER = "style3d"
+PEER_TOLS = (1e-1, 3e-2, 1e-2, 3e-3)
+NOT_OURS = ("none", PEER)
 
 
 @dataclass
@@ -323,6 +341,7 @@ def measure_scene(
     levels=("coarse", "fine"),
     repeat_below: float = 4.0,
     log=print,
+    peer_tols=(),
 ) -> dict:
     from couture.solvers import get_solver
 
@@ -405,6 +424,33 @@ def measure_scene(
                     iterations=int(res.iterations),
                     diagnosis=res.diagnosis,
                 )
+    peer: dict = {"tols": list(peer_tols)}
+    if peer_tols:
+        fine = scene.levels["fine"]
+        for tol in peer_tols:
+            m = fine.model_at(d)
+            r = get_solver(PEER).solve(m, fine.x_eq.copy(), tol=tol, max_seconds=seconds)
+            record(
+                PEER,
+                "fine",
+                tol,
+                float(r.wall_time),
+                1,
+                r.x,
+                converged=bool(r.converged),
+                solver_residual=float(r.residual),
+                own_residual=float(r.stats["own_residual"]),
+                build_s=float(r.stats["build_s"]),
+                seams_unwelded=int(r.stats["seams_unwelded"]),
+                iterations=int(r.iterations),
+                diagnosis=r.diagnosis,
+            )
+        peer["ratios"] = peer_ratios(rows)
+        for q in peer["ratios"]:
+            for key in ("", "solver_"):
+                v = q[f"{key}ours_over_peer"]
+                ratio = "none of ours as accurate" if v is None else f"{v:.3g}"
+                log(f"  {scene.name:6s} {q['peer']:22s} vs {q[f'{key}ours'] or '-':22s} ours/peer time {ratio}")
     return {
         "scene": scene.name,
         "description": scene.description,
@@ -415,14 +461,44 @@ def measure_scene(
         | {"self_rms_mm": errors(x_ref, x_ref, ref_model)["rms_mm"]},
         "rows": rows,
         "pareto": pareto(rows),
+        "peer": peer,
     }
+
+
+def peer_ratios(rows: list[dict]) -> list[dict]:
+    """For each peer point: the fastest of our answers with RMS error <= the peer's, and
+    ``ours_over_peer`` = its latency / the peer's (None when none of ours is that accurate).
+
+    ``ours_over_peer_steps``: the same over the peer's latency less its model build
+    (newton's model and Style3D's PD matrix for the edited rest shape; our solvers get
+    their model built outside the timing). ``solver_*``: the same with our solvers only
+    (a full re-solve like the peer's, no sensitivity prediction)."""
+    ours = [r for r in rows if r["method"] not in NOT_OURS and r["method"] != LINEAR_FRICTIONLESS]
+    solvers = [r for r in ours if r["method"] in SOLVER_NAMES]
+    out = []
+    for p in (r for r in rows if r["method"] == PEER):
+        q: dict = {"peer": p["label"], "peer_latency_s": p["latency_s"], "peer_rms_mm": p["rms_mm"]}
+        steps_s = max(p["latency_s"] - p.get("build_s", 0.0), 1e-12)
+        for key, pool in (("", ours), ("solver_", solvers)):
+            good = [r for r in pool if r["rms_mm"] <= p["rms_mm"]]
+            best = min(good, key=lambda r: r["latency_s"]) if good else None
+            lat = None if best is None else best["latency_s"]
+            q[f"{key}ours"] = None if best is None else best["label"]
+            q[f"{key}ours_latency_s"] = lat
+            q[f"{key}ours_rms_mm"] = None if best is None else best["rms_mm"]
+            q[f"{key}ours_over_peer"] = None if lat is None else lat / max(p["latency_s"], 1e-12)
+            q[f"{key}ours_over_peer_steps"] = None if lat is None else lat / steps_s
+        out.append(q)
+    return out
 
 
 def pareto(rows: list[dict]) -> list[str]:
     """Labels on the Pareto front of (latency, RMS error), fastest first: no other
     answer is both at least as fast and at least as accurate (and better in one).
-    The diagnostic frictionless linearisation is left out: the node does not make it."""
-    pts = sorted((r for r in rows if r["method"] != LINEAR_FRICTIONLESS), key=lambda r: (r["latency_s"], r["rms_mm"]))
+    The diagnostic frictionless linearisation and the peer are left out: ours only."""
+    pts = sorted(
+        (r for r in rows if r["method"] not in (LINEAR_FRICTIONLESS, PEER)), key=lambda r: (r["latency_s"], r["rms_mm"])
+    )
     front, best = [], np.inf
     for r in pts:
         if r["rms_mm"] < best:
@@ -431,7 +507,7 @@ def pareto(rows: list[dict]) -> list[str]:
     return front
 
 
-def warm_up(log=print) -> dict:
+def warm_up(log=print, peer: bool = False) -> dict:
     """Compile or load every numba kernel on a tiny sheet: the first call's extra time per component [s]."""
     from couture.bench.sensitivity import strip_over_sphere
     from couture.sensitivity import Predictor
@@ -463,15 +539,37 @@ def warm_up(log=print) -> dict:
             p.drag((0.02, 0.0), method=m)
         times.append(time.perf_counter() - t0)
     out["predictor"] = max(0.0, times[0] - times[1])
+    if peer:
+        times = []
+        for _ in range(2):
+            t0 = time.perf_counter()
+            get_solver(PEER).solve(model, model.mesh.x0.copy(), tol=1e-1, max_iters=5, max_seconds=60)
+            times.append(time.perf_counter() - t0)
+        out[PEER] = max(0.0, times[0] - times[1])
     log("warm-up (compile/load) s: " + ", ".join(f"{k} {v:.2f}" for k, v in out.items()))
     return out
 
 
 def run(
-    scenes, size: str, tols, repeats: int, seconds: float, solvers=SOLVER_NAMES, repeat_below: float = 4.0, log=print
+    scenes,
+    size: str,
+    tols,
+    repeats: int,
+    seconds: float,
+    solvers=SOLVER_NAMES,
+    repeat_below: float = 4.0,
+    log=print,
+    peer_tols=(),
 ) -> dict:
+    from couture.solvers import peer
+
     t_start = time.perf_counter()
-    compile_s = warm_up(log)
+    peer_note = ""
+    if peer_tols and not peer.available():
+        peer_note = f"peer {PEER} skipped: newton is not installed (install couture[peer])"
+        log(peer_note)
+        peer_tols = ()
+    compile_s = warm_up(log, peer=bool(peer_tols))
     results = []
     for name in scenes:
         t0 = time.perf_counter()
@@ -481,7 +579,9 @@ def run(
             f"[{name}] vertices {', '.join(f'{k} {v.model.n}' for k, v in sc.levels.items())}; "
             f"drapes {', '.join(f'{k} {v.drape_s:.1f} s' for k, v in sc.levels.items())}"
         )
-        res = measure_scene(sc, tols, repeats, seconds, solvers, repeat_below=repeat_below, log=log)
+        res = measure_scene(
+            sc, tols, repeats, seconds, solvers, repeat_below=repeat_below, log=log, peer_tols=peer_tols
+        )
         res["scene_s"] = time.perf_counter() - t0
         results.append(res)
     return {
@@ -489,6 +589,7 @@ def run(
         "size": size,
         "tols": list(tols),
         "solvers": list(solvers),
+        "peer": {"solver": PEER, "tols": list(peer_tols), "note": peer_note},
         "repeats": repeats,
         "repeat_below_s": repeat_below,
         "compile_s": compile_s,
@@ -513,6 +614,7 @@ METHOD_STYLE = {
     "newton": ("tab:red", "s"),
     "kinetic": ("tab:purple", "^"),
     "verlet": ("tab:orange", "v"),
+    PEER: ("tab:brown", "*"),
 }
 
 
@@ -597,6 +699,11 @@ def main(argv: list[str] | None = None) -> int:
         default=10.0,
         help="cap on each timed solve [s] (the drapes and the reference get 12x)",
     )
+    ap.add_argument(
+        "--peer-tols",
+        default=",".join(f"{t:g}" for t in PEER_TOLS),
+        help="the peer's (style3d) own stopping thresholds; empty: no peer",
+    )
     ap.add_argument("--no-plot", action="store_true")
     add_out_arg(ap)
     a = ap.parse_args(argv)
@@ -609,7 +716,8 @@ def main(argv: list[str] | None = None) -> int:
     for s in solvers:
         if s not in SOLVER_NAMES:
             ap.error(f"unknown solver {s!r}; choose from {', '.join(SOLVER_NAMES)}")
-    results = run(scenes, a.size, tols, a.repeats, a.max_seconds, solvers, a.repeat_below)
+    peer_tols = [float(t) for t in a.peer_tols.split(",") if t]
+    results = run(scenes, a.size, tols, a.repeats, a.max_seconds, solvers, a.repeat_below, peer_tols=peer_tols)
     print(table(results))
     print("* on the Pareto front")
     path = write_results(a.out, "tradeoff", results)

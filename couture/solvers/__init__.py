@@ -7,6 +7,7 @@
   time step, CG preconditioned by a reused sparse factorization (or IC(0)).
 - ``newton``: Newton + Armijo line search, sparse direct factorization (accuracy reference).
 - ``verlet``: Meng 2010 style mass-spring with Stoermer-Verlet (speed end; its own spring model).
+- ``style3d``: the peer, NVIDIA newton's SolverStyle3D (optional extra ``couture[peer]``; its own model).
 
 Cascadic coarse-to-fine refinement: :func:`couture.solvers.cascadic.solve_cascadic`.
 """
@@ -18,12 +19,14 @@ from typing import Callable
 from .base import ProgressCallback, Solver, SolveResult
 from .kinetic import KineticSolver
 from .newton import NewtonSolver
+from .peer import Style3DSolver
 from .verlet import VerletSolver
 
 SOLVERS: dict[str, Callable[..., Solver]] = {
     "kinetic": KineticSolver,
     "newton": NewtonSolver,
     "verlet": VerletSolver,
+    "style3d": Style3DSolver,
 }
 
 
@@ -45,4 +48,5 @@ __all__ = [
     "KineticSolver",
     "NewtonSolver",
     "VerletSolver",
+    "Style3DSolver",
 ]

@@ -8,7 +8,7 @@ if __name__ == "__main__":
     p = argparse.ArgumentParser(prog="python -m nodes.solver")
     add_bus_args(p)
     p.add_argument("--name", default="solver-kinetic", help="node name, unique in the session")
-    p.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet"])
+    p.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet", "style3d"])
     p.add_argument(
         "--max-seconds", type=float, default=None, help="[s] cap on each level's solve (default: the service's)"
     )

@@ -1,7 +1,7 @@
 """A solver node: mesh/* -> drape/coarse, drape/fine; answers solve queries.
 
 A thin adapter over :class:`couture.solvers.service.SolveService`. Any of the
-three methods (kinetic, newton, verlet) runs behind the same topics, with its
+methods (kinetic, newton, verlet; style3d, the peer, with couture[peer]) runs behind the same topics, with its
 own node name on every drape, so two can run at once for comparison.
 
 Behaviour (DESIGN §2): a new pattern generation aborts the running solve; a
@@ -64,7 +64,7 @@ class Config:
     name: str = "solver-kinetic"
     """node name, unique in the session (liveliness key status/<name>)"""
     solver: str = "kinetic"
-    """'kinetic', 'newton' or 'verlet'"""
+    """'kinetic', 'newton', 'verlet' or 'style3d' (the peer, couture[peer])"""
     progress_period_s: float = 0.5
     """[s] between progress drapes during a solve"""
     max_seconds: float | None = None
