@@ -61,20 +61,13 @@ def seam_gaps(mesh, x: np.ndarray) -> np.ndarray:
 
 
 def body_params(kind: str, body: str) -> dict[str, float]:
-    """The sloper's body-measurement options set to ``body``'s measurements
-    (``couture.bodies.measured``): waist and hip girth, waist to hip and waist
-    to crotch heights, where the sloper has them (clipped to their ranges)."""
-    from couture import bodies
-    from couture.pattern import SLOPERS
+    """The option values a design of sloper ``kind`` on ``body`` drafts from
+    before defaults: for a body-fitted sloper, the body's measurements
+    (:func:`couture.pattern.draft.sloper_params`)."""
+    from couture.pattern.draft import sloper_params
+    from schemas.design import Body, Design, Sloper
 
-    m = bodies.measured(body)
-    values = {
-        "waist_girth": m["waist_girth"],
-        "hip_girth": m["hip_girth"],
-        "waist_to_hip": m["waist_y"] - m["hip_y"],
-        "crotch_depth": m["waist_y"] - m["crotch_y"],
-    }
-    return {o.name: float(np.clip(values[o.name], o.min, o.max)) for o in SLOPERS[kind].options if o.name in values}
+    return sloper_params(Design(sloper=Sloper(kind=kind), body=Body(name=body)))
 
 
 def coarse_mesh(kind: str, vertices: int, params: dict | None = None, body: str = "default"):

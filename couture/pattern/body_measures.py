@@ -78,6 +78,7 @@ def body_options(name: str) -> dict[str, float]:
         "hip_girth": m["hip_girth"],
         "waist_height": m["waist_y"] - m["floor_y"],
         "waist_to_hip": m["waist_y"] - m["hip_y"],
+        "crotch_depth": m["waist_y"] - m["crotch_y"],
         "waist_to_underarm": m["underarm_y"] - m["waist_y"] - 0.03,
         "waist_to_shoulder": M.SHOULDER_Y - m["waist_y"],
     }

@@ -999,7 +999,7 @@ SLOPERS: dict[str, SloperDef] = {
         "dress_waist", DRESS_WAIST_OPTIONS, draft_dress_waist, draft_dress_waist.__doc__ or "", body_fitted=True
     ),
     "shirt": SloperDef("shirt", SHIRT_OPTIONS, draft_shirt, draft_shirt.__doc__ or ""),
-    "trousers": SloperDef("trousers", TROUSERS_OPTIONS, draft_trousers, draft_trousers.__doc__ or ""),
+    "trousers": SloperDef("trousers", TROUSERS_OPTIONS, draft_trousers, draft_trousers.__doc__ or "", body_fitted=True),
     "shirt_set_in": SloperDef(
         "shirt_set_in", SHIRT_SET_IN_OPTIONS, draft_shirt_set_in, draft_shirt_set_in.__doc__ or "", body_fitted=True
     ),
