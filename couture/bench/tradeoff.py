@@ -59,6 +59,7 @@ measurement.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import platform
 import time
@@ -279,7 +280,7 @@ def reference(scene: Scene, seconds: float, log=print) -> dict:
         m = f.model_at(scene.d)
         t0 = time.perf_counter()
         r = get_solver("newton").solve(
-            m, f.x_eq.copy(), tol=tol, max_seconds=seconds, max_iters=5000, friction_after=AS_LIVE
+            m, f.x_eq.copy(), tol=tol, max_seconds=seconds, max_iters=5000, friction_after=as_live(m)
         )
         s = time.perf_counter() - t0
         log(
@@ -291,10 +292,14 @@ def reference(scene: Scene, seconds: float, log=print) -> dict:
     raise RuntimeError(f"{scene.name}: no reference: fine Newton did not converge even to {REFERENCE_TOLS[-1]}")
 
 
-AS_LIVE = None
-"""a re-solve from the old drape keeps the solver's own friction schedule, as the solver node
-does for a warm start (couture.solvers.service.FRICTION_AT_ONCE: only a placement has friction
-at once)"""
+def as_live(model) -> float | None:
+    """The friction schedule of a re-solve from the old drape, as the solver node decides it
+    for a warm start: a model that carries its drape's anchors keeps them from the first
+    iteration (``couture.solvers.service.carries_anchors``), any other the solver's own."""
+    from couture.solvers.service import carries_anchors
+
+    return math.inf if carries_anchors(model) else None
+
 
 LINEAR_FRICTIONLESS = "linear_nofric"
 """diagnostic: the linear prediction from a frictionless linearisation (the node holds friction)"""
@@ -304,10 +309,9 @@ def half_sample(level: Level, d: np.ndarray, seconds: float):
     """The converged equilibrium at half the edit, as if the solver sent it mid-drag: (x, seconds)."""
     from couture.solvers import get_solver
 
+    m = level.model_at(0.5 * d)
     t0 = time.perf_counter()
-    r = get_solver("newton").solve(
-        level.model_at(0.5 * d), level.x_eq.copy(), tol=1e-6, max_seconds=seconds, friction_after=AS_LIVE
-    )
+    r = get_solver("newton").solve(m, level.x_eq.copy(), tol=1e-6, max_seconds=seconds, friction_after=as_live(m))
     return r.x, time.perf_counter() - t0
 
 
@@ -404,7 +408,7 @@ def measure_scene(
                 def solve(L=L, solver=solver, tol=tol):
                     m = L.model_at(d)
                     t0 = time.perf_counter()
-                    r = solver.solve(m, L.x_eq.copy(), tol=tol, max_seconds=seconds, friction_after=AS_LIVE)
+                    r = solver.solve(m, L.x_eq.copy(), tol=tol, max_seconds=seconds, friction_after=as_live(m))
                     return time.perf_counter() - t0, r
 
                 s, res = solve()
