@@ -47,6 +47,10 @@ RESERVED_SOLVER_NAMES = ("request", "result")
 
 DEFAULT_PORT = 7447
 DEFAULT_ENDPOINT = f"tcp/127.0.0.1:{DEFAULT_PORT}"
+HEARTBEAT_S = 1.0
+"""[s] period of the sequence-number heartbeat of publishers that keep history: a
+subscriber that missed a topic's last sample (a partition) recovers it within
+about this long after the link heals"""
 """where `couture up` listens when that port is free, and where Client connects by default"""
 
 
@@ -246,8 +250,16 @@ class TypedPublisher(Generic[M]):
         if history:
             # zenoh-ext advanced publisher: a subscriber that joins late (a
             # restarted solver, a reopened UI) receives the cached samples
+            # and a heartbeat (the last sequence number, every HEARTBEAT_S) lets a
+            # subscriber that missed the last sample (cut off by a partition while
+            # it went out) notice and fetch it from the cache once the link heals
             self._pub = zenoh.ext.declare_advanced_publisher(
-                bus.zenoh, self.key, cache=zenoh.ext.CacheConfig(max_samples=history), publisher_detection=True, **opts
+                bus.zenoh,
+                self.key,
+                cache=zenoh.ext.CacheConfig(max_samples=history),
+                sample_miss_detection=zenoh.ext.MissDetectionConfig(heartbeat=HEARTBEAT_S),
+                publisher_detection=True,
+                **opts,
             )
             # AdvancedPublisher has no matching status: a plain publisher that
             # never sends answers "does anyone subscribe here?"
@@ -388,6 +400,7 @@ class Bus:
                 self.key(topic),
                 on_sample,
                 history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=max(n_history, 1)),
+                recovery=zenoh.ext.RecoveryConfig(heartbeat=True),
             )
         else:
             sub = self.zenoh.declare_subscriber(self.key(topic), on_sample)
