@@ -257,7 +257,7 @@ class TypedPublisher(Generic[M]):
                 bus.zenoh,
                 self.key,
                 cache=zenoh.ext.CacheConfig(max_samples=history),
-                sample_miss_detection=zenoh.ext.MissDetectionConfig(heartbeat=HEARTBEAT_S),
+                sample_miss_detection=zenoh.ext.MissDetectionConfig(heartbeat=HEARTBEAT_S, sporadic_heartbeat=None),
                 publisher_detection=True,
                 **opts,
             )
@@ -400,7 +400,7 @@ class Bus:
                 self.key(topic),
                 on_sample,
                 history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=max(n_history, 1)),
-                recovery=zenoh.ext.RecoveryConfig(heartbeat=True),
+                recovery=zenoh.ext.RecoveryConfig(periodic_queries=None, heartbeat=True),
             )
         else:
             sub = self.zenoh.declare_subscriber(self.key(topic), on_sample)
