@@ -45,9 +45,10 @@ def _parser() -> argparse.ArgumentParser:
     up.add_argument(
         "--solver",
         nargs="+",
-        default=["kinetic"],
+        default=["newton"],
         choices=["kinetic", "newton", "verlet", "style3d"],
-        help="solver nodes to run (several for side-by-side comparison)",
+        help="solver nodes to run (several for side-by-side comparison; default newton: the accuracy "
+        "reference, and the fastest to a converged fine drape after an edit, bench/results/edit_pattern*.json)",
     )
     up.add_argument(
         "--only",
@@ -135,7 +136,7 @@ def _parser() -> argparse.ArgumentParser:
         help="[s] to wait for the final fine drape (default 240: longer than the solver's own caps, "
         "so a slow solve ends with its diagnosis, exit 3, rather than a timeout, exit 5)",
     )
-    dp.add_argument("--solver", default="kinetic", choices=["kinetic", "newton", "verlet", "style3d"])
+    dp.add_argument("--solver", default="newton", choices=["kinetic", "newton", "verlet", "style3d"])
     dp.add_argument(
         "--solver-max-seconds",
         type=float,
@@ -633,7 +634,7 @@ def drape(
     *,
     bus,
     timeout: float = 240.0,
-    solver: str = "kinetic",
+    solver: str = "newton",
     solver_max_seconds: float | None = None,
     verbose: bool = False,
     name: str | None = None,

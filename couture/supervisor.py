@@ -94,7 +94,7 @@ def default_nodes(
     the adjust node (pattern adjustment for direct 3D edits; ``couture up``
     starts it, tests ask for it), ui, recorder."""
     nodes = [NodeSpec("remesher", "nodes.remesher")]
-    for s in solvers or ["kinetic"]:
+    for s in solvers or ["newton"]:
         nodes.append(NodeSpec(f"solver-{s}", "nodes.solver", ["--solver", s]))
     nodes.append(NodeSpec("sensitivity", "nodes.sensitivity"))
     if adjust:

@@ -77,7 +77,7 @@ def test_capped_solve_exits_3_writes_the_drape_and_prints_the_diagnosis(tmp_path
     assert (tmp_path / "out" / "drape.obj").exists()
     last = r.stderr.strip().splitlines()[-1]
     assert last.startswith("couture drape: not converged: fine residual")
-    assert "solver-kinetic" in last and meta["diagnosis"] in last
+    assert "solver-newton" in last and meta["diagnosis"] in last
 
 
 BAD_DESIGNS = [

@@ -18,7 +18,7 @@ from couture.bus import BusConfig, free_port, open_session
 
 pytestmark = pytest.mark.timeout(90)
 
-NODES = ["remesher", "solver-kinetic", "sensitivity", "adjust"]
+NODES = ["remesher", "solver-newton", "sensitivity", "adjust"]
 
 
 def test_up_restarts_killed_node_and_ctrl_c_leaves_no_orphans():
@@ -57,15 +57,15 @@ def test_up_restarts_killed_node_and_ctrl_c_leaves_no_orphans():
                 time.sleep(0.05)
             children = {p.pid for p in psutil.Process(sup.pid).children(recursive=True)}
             seen_pids |= children
-            old = pids["solver-kinetic"]
+            old = pids["solver-newton"]
             assert old in children
 
             psutil.Process(old).kill()
             deadline = time.monotonic() + 20
             while time.monotonic() < deadline:
                 with lock:
-                    new = pids.get("solver-kinetic")
-                if new != old and "solver-kinetic" in bus.live_nodes(timeout=0.3):
+                    new = pids.get("solver-newton")
+                if new != old and "solver-newton" in bus.live_nodes(timeout=0.3):
                     break
                 time.sleep(0.1)
             assert new != old, "solver was not restarted"
@@ -76,7 +76,7 @@ def test_up_restarts_killed_node_and_ctrl_c_leaves_no_orphans():
         out, err = sup.communicate(timeout=30)
         assert sup.returncode == 0, err[-3000:]
         assert "UI:" not in out  # --no-ui
-        assert f"node solver-kinetic (pid {old}) exited with code -9; restarting" in err
+        assert f"node solver-newton (pid {old}) exited with code -9; restarting" in err
         alive = [p for p in seen_pids if psutil.pid_exists(p) and psutil.Process(p).status() != psutil.STATUS_ZOMBIE]
         assert alive == [], f"orphans left: {alive}"
         with socket.socket() as s:  # nobody listens on the supervisor's port any more (TIME_WAIT is fine)

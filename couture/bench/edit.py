@@ -119,7 +119,7 @@ LENGTH_STEP_M = 0.02
 
 
 def run_pattern_changes(
-    changes: int, solver: str = "kinetic", timeout: float = 300.0, fine_vertices: int | None = None
+    changes: int, solver: str = "newton", timeout: float = 300.0, fine_vertices: int | None = None
 ) -> dict:
     """Latency of pattern changes on the live nodes, measured from the bus (see the module docstring).
 
@@ -226,7 +226,7 @@ def run_pattern_changes(
 
 
 def main_pattern(a: argparse.Namespace) -> int:
-    res = run_pattern_changes(a.changes, solver=a.solver or "kinetic", timeout=a.timeout, fine_vertices=a.fine_vertices)
+    res = run_pattern_changes(a.changes, solver=a.solver or "newton", timeout=a.timeout, fine_vertices=a.fine_vertices)
     med, goal = res["median"], res["goal"]
     print(f"{'change':>6} {'coarse s':>9} {'fine s':>8} {'converged':>9} {'residual':>9}")
     for r in res["changes"]:
@@ -277,7 +277,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--solver",
         default=None,
-        help="solver node (default: newton for drag, kinetic, as `couture up` runs, for pattern)",
+        help="solver node (default: newton, as `couture up` runs)",
     )
     ap.add_argument("--timeout", type=float, default=300.0, help="[s] pattern case: wait per fine drape")
     ap.add_argument(

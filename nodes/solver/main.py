@@ -61,9 +61,9 @@ BACKEND_ENV = "COUTURE_SOLVER_BACKEND"
 @dataclass
 class Config:
     bus: BusConfig = field(default_factory=BusConfig)
-    name: str = "solver-kinetic"
+    name: str = "solver-newton"
     """node name, unique in the session (liveliness key status/<name>)"""
-    solver: str = "kinetic"
+    solver: str = "newton"
     """'kinetic', 'newton', 'verlet' or 'style3d' (the peer, couture[peer])"""
     progress_period_s: float = 0.5
     """[s] between progress drapes during a solve"""
