@@ -12,7 +12,10 @@ them through :class:`TryOn`, ``couture/tryon/v1`` messages carry them):
   vertex of the panel that is nearer the body than the contact offset is
   pushed out along the distance field's gradient until phi >= offset. The
   panel thus wraps around the body and never enters it (it may stretch a
-  little where it is pushed out; the next solve relaxes that);
+  little where it is pushed out; the next solve relaxes that). With a
+  ``guide`` (the body's ellipsoid proxy, couture.cloth.proxy, Meng §4) the
+  steps are pushed out of the guide instead, a fast bound of the body, and
+  the end once more out of the body itself;
 * :func:`TryOn.fix` pins a panel where it is (Meng §6 "Fix": its vertices
   keep their positions in the solve);
 * sequential sewing (Meng §6 "Complex sewing and inter-stage adjustment"):
@@ -153,6 +156,7 @@ def drag(
     step: float = 0.01,
     axis=UP,
     axis_point=TORSO_AXIS_POINT,
+    guide=None,
 ) -> np.ndarray:
     """x with ``verts`` slid along the body (a copy; module docstring).
 
@@ -160,7 +164,13 @@ def drag(
     counter-clockwise seen from above), rise [m] along it. The motion is cut
     into ceil(L / step) equal steps, L the longest path a vertex travels
     (arc at its radius plus rise); after each step the panel is pushed out
-    of the body's offset layer (phi >= offset)."""
+    of the body's offset layer (phi >= offset).
+
+    ``guide``: a body to slide along instead (same ``phi_grad``), e.g. the
+    ellipsoid proxy, which bounds the body (the panel rides up to its fit
+    error farther out) and whose gradient never vanishes; the result is
+    pushed out of ``body`` once at the end, so it is outside ``body``'s
+    offset layer either way."""
     if not (math.isfinite(turn) and math.isfinite(rise)):
         raise TryOnError(f"drag turn and rise must be finite, got {turn!r}, {rise!r}")
     if step <= 0:
@@ -175,9 +185,12 @@ def drag(
     travel = math.hypot(abs(turn) * r_max, rise)
     n = max(1, math.ceil(travel / step))
     R = rotation_matrix(a, turn / n)
-    push_out(out, verts, body, offset)  # start outside (a placement may graze the layer)
+    along = body if guide is None else guide
+    push_out(out, verts, along, offset)  # start outside (a placement may graze the layer)
     for _ in range(n):
         out[verts] = (out[verts] - c) @ R.T + c + (rise / n) * a
+        push_out(out, verts, along, offset)
+    if guide is not None:
         push_out(out, verts, body, offset)
     return out
 
@@ -313,6 +326,7 @@ class TryOn:
         body=None,
         offset: float = 0.01,
         step: float = 0.01,
+        guide=None,
     ) -> "TryOn":
         """One operation, in place; returns self.
 
@@ -322,6 +336,7 @@ class TryOn:
         vector[1] [m] up it (vector's other components are ignored); fix /
         unfix: pin / release panel; sew / unsew: seam (None or < 0: the next
         unsewn / the last sewn). Positions change only by move, rotate, drag.
+        ``guide``: what drag slides along (:func:`drag`; None: ``body``).
         """
         if op not in OPS:
             raise TryOnError(f"unknown try-on op {op!r}; use one of {OPS}")
@@ -350,7 +365,7 @@ class TryOn:
             if body is None:
                 raise TryOnError("drag needs a body")
             rise = 0.0 if vector is None else float(_vec3(vector, "drag vector")[1])
-            self.x = drag(self.x, verts, body, turn=float(angle), rise=rise, offset=offset, step=step)
+            self.x = drag(self.x, verts, body, turn=float(angle), rise=rise, offset=offset, step=step, guide=guide)
         return self
 
     def _name(self, p: int) -> str:

@@ -141,6 +141,19 @@ class TriangleMeshDistance:
         """[m] farthest triangle point from its centroid: (distance to the nearest
         centroid) - reach is a lower bound on a point's distance to the mesh"""
 
+    def phi_grad(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Exact signed distance and its gradient (the unit direction from the
+        closest surface point, outward), so the mesh itself is a body; near
+        the surface (the k nearest faces by centroid are searched)."""
+        p = np.ascontiguousarray(points, dtype=np.float64)
+        phi = np.empty(len(p))
+        grad = np.empty((len(p), 3))
+        if len(p):
+            _, cand = self.tree.query(p, k=self.k)
+            cand = np.ascontiguousarray(cand.reshape(len(p), -1), dtype=np.int64)
+            K.signed_distance_grad_candidates(p, cand, self.V, self.F, self.face_n, self.edge_n, self.vert_n, phi, grad)
+        return phi, grad
+
     def __call__(self, points: np.ndarray, chunk: int = 100_000, progress: str | None = None) -> np.ndarray:
         points = np.ascontiguousarray(points, dtype=np.float64)
         out = np.empty(len(points))

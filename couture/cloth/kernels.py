@@ -670,6 +670,49 @@ def signed_distance_candidates(points, cand, V, F, face_n, edge_n, vert_n, out):
 
 
 @njit(cache=True)
+def signed_distance_grad_candidates(points, cand, V, F, face_n, edge_n, vert_n, out, grad):
+    """signed_distance_candidates plus its gradient (n, 3): the unit vector
+    from the closest surface point to the point, times the sign (the outward
+    pseudonormal, normalised, for a point on the surface)."""
+    q = np.empty(3)
+    qb = np.empty(3)
+    for p in range(points.shape[0]):
+        best = 1e300
+        sgn = 1.0
+        pt = points[p]
+        bn0, bn1, bn2 = 0.0, 1.0, 0.0
+        for kk in range(cand.shape[1]):
+            f = cand[p, kk]
+            feat = _closest_on_triangle(pt, V[F[f, 0]], V[F[f, 1]], V[F[f, 2]], q)
+            d0 = pt[0] - q[0]
+            d1 = pt[1] - q[1]
+            d2 = pt[2] - q[2]
+            dist2 = d0 * d0 + d1 * d1 + d2 * d2
+            if dist2 < best:
+                best = dist2
+                qb[:] = q
+                if feat == 0:
+                    nx, ny, nz = face_n[f, 0], face_n[f, 1], face_n[f, 2]
+                elif feat <= 3:
+                    nx, ny, nz = edge_n[f, feat - 1, 0], edge_n[f, feat - 1, 1], edge_n[f, feat - 1, 2]
+                else:
+                    vv = F[f, feat - 4]
+                    nx, ny, nz = vert_n[vv, 0], vert_n[vv, 1], vert_n[vv, 2]
+                bn0, bn1, bn2 = nx, ny, nz
+                sgn = 1.0 if d0 * nx + d1 * ny + d2 * nz >= 0.0 else -1.0
+        d = np.sqrt(best)
+        out[p] = sgn * d
+        if d > 1e-12:
+            for c in range(3):
+                grad[p, c] = sgn * (pt[c] - qb[c]) / d
+        else:
+            nn = np.sqrt(bn0 * bn0 + bn1 * bn1 + bn2 * bn2)
+            grad[p, 0] = bn0 / nn
+            grad[p, 1] = bn1 / nn
+            grad[p, 2] = bn2 / nn
+
+
+@njit(cache=True)
 def _bspline3(t, w, dw):
     """Uniform cubic B-spline weights (and d/dt) of the 4 nodes around t in [0, 1)."""
     s = 1.0 - t

@@ -22,8 +22,10 @@ max(MND, overshoot) exceeds its threshold.
 :class:`EllipsoidProxyBody` is a body like ``couture.cloth.body.GridSDFBody``:
 ``phi_grad(points) -> (phi, grad)``, the signed distance to the union of the
 leaf ellipsoids (exact outside it), plus picking queries (``nearest``,
-``raycast``). :func:`load_mannequin_proxy` builds it for the embedded
-mannequin once and caches it beside the mannequin SDF.
+``raycast``). :func:`load_body_proxy` builds it for a body (the embedded
+mannequin or a graded size) once and caches it beside the body's SDF. The
+try-on drag slides pieces along it (couture.tryon) and the 3D view picks the
+body with its rays (couture.ui.geometry.pick_body).
 
 Everything is SI (metres); y is up on the mannequin, z to its front.
 """
@@ -737,21 +739,24 @@ def load_nodes(path) -> list[ProxyNode]:
     return nodes
 
 
-def build_mannequin_proxy(thresholds: dict[str, float] | None = None, verbose: bool = True, **kw) -> EllipsoidProxyBody:
-    """The mannequin's proxy, built now (~1 min): volume points from its grid
-    SDF's nodes, overshoot measured with the grid SDF."""
+def build_mannequin_proxy(
+    thresholds: dict[str, float] | None = None, verbose: bool = True, name: str = "default", **kw
+) -> EllipsoidProxyBody:
+    """A body's proxy (the default mannequin, or the graded body ``name`` of
+    couture.bodies, which share its pose and so its region landmarks), built
+    now (~1 min): volume points from its grid SDF's nodes, overshoot measured
+    with the grid SDF."""
     from couture.cloth.body import load_mannequin_mesh, load_mannequin_sdf
 
-    V, F = load_mannequin_mesh()
-    grid = load_mannequin_sdf(verbose=verbose)
+    V, F = load_mannequin_mesh(name)
+    grid = load_mannequin_sdf(verbose=verbose, name=name)
 
     def sdf(p):
         return grid.phi_grad(p)[0]
 
     samples = body_samples(V, F, sdf)
-    nodes = build_hierarchy(
-        samples, mannequin_regions, thresholds, sdf=sdf, progress="mannequin proxy" if verbose else None, **kw
-    )
+    label = "mannequin proxy" if name == "default" else f"body {name} proxy"
+    nodes = build_hierarchy(samples, mannequin_regions, thresholds, sdf=sdf, progress=label if verbose else None, **kw)
     return EllipsoidProxyBody(nodes)
 
 
@@ -760,14 +765,19 @@ _LOADED: dict[str, EllipsoidProxyBody] = {}
 """proxies loaded in this process, by cache file (a solver asks once per solve)"""
 
 
-def load_mannequin_proxy(
-    thresholds: dict[str, float] | None = None, verbose: bool = True, blend: float = 0.0
+def load_body_proxy(
+    name: str = "default", thresholds: dict[str, float] | None = None, verbose: bool = True, blend: float = 0.0
 ) -> EllipsoidProxyBody:
-    """The mannequin's ellipsoid proxy, from the cache (beside the mannequin
-    SDF: ``$COUTURE_CACHE`` or ``~/.cache/couture``) or built and cached now;
-    blend [m]: its smooth min (EllipsoidProxyBody)."""
-    from couture.cloth.body import MANNEQUIN_OBJ, cache_dir
+    """The ellipsoid proxy of the body ``name`` ('default': the embedded
+    mannequin, or a graded body of couture.bodies), from the cache (beside
+    the body's SDF: ``$COUTURE_CACHE`` or ``~/.cache/couture``; one file per
+    body mesh and thresholds, so another body or an edited mesh gets its own)
+    or built and cached now; loaded once per process. blend [m]: its smooth
+    min (EllipsoidProxyBody)."""
+    from couture import bodies
+    from couture.cloth.body import cache_dir
 
+    obj = bodies.obj_path(name)
     thr = dict(DEFAULT_THRESHOLDS if thresholds is None else thresholds)
     key = json.dumps(
         dict(
@@ -776,18 +786,26 @@ def load_mannequin_proxy(
             lm=[MANNEQUIN_CROTCH_Y, MANNEQUIN_NECK_Y, MANNEQUIN_ARM_X, MANNEQUIN_ARM_LOW_Y],
         )
     )
-    digest = hashlib.sha1(MANNEQUIN_OBJ.read_bytes() + key.encode()).hexdigest()[:12]
-    path = cache_dir() / f"mannequin_proxy_{digest}_v{PROXY_VERSION}.npz"
-    name = f"{path}|{float(blend)!r}"
-    if name in _LOADED:
-        return _LOADED[name]
+    digest = hashlib.sha1(obj.read_bytes() + key.encode()).hexdigest()[:12]
+    stem = "mannequin" if name == "default" else f"body_{name}"
+    path = cache_dir() / f"{stem}_proxy_{digest}_v{PROXY_VERSION}.npz"
+    cache_key = f"{path}|{float(blend)!r}"
+    if cache_key in _LOADED:
+        return _LOADED[cache_key]
     if path.exists():
         nodes = load_nodes(path)
     else:
-        nodes = build_mannequin_proxy(thr, verbose=verbose).nodes
+        nodes = build_mannequin_proxy(thr, verbose=verbose, name=name).nodes
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".tmp{os.getpid()}.npz")
         save_nodes(tmp, nodes)
         os.replace(tmp, path)
-    body = _LOADED[name] = EllipsoidProxyBody(nodes, blend=blend)
+    body = _LOADED[cache_key] = EllipsoidProxyBody(nodes, blend=blend)
     return body
+
+
+def load_mannequin_proxy(
+    thresholds: dict[str, float] | None = None, verbose: bool = True, blend: float = 0.0
+) -> EllipsoidProxyBody:
+    """The embedded mannequin's proxy (load_body_proxy('default'))."""
+    return load_body_proxy("default", thresholds, verbose, blend)

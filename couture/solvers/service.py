@@ -58,6 +58,16 @@ from schemas.design import Design
 
 log = logging.getLogger(__name__)
 
+TRYON_GUIDES = ("proxy", "body")
+"""what a try-on drag slides along (SolveService.tryon_guide)"""
+
+
+def _load_proxy(name: str):
+    from couture.cloth.proxy import load_body_proxy
+
+    return load_body_proxy(name, verbose=False)
+
+
 FRICTION_AT_ONCE = ("placement",)
 """warm starts (``SolveService._warm``) from which friction acts at the first iteration (module docstring)"""
 
@@ -161,8 +171,20 @@ class SolveService:
     tryon_op_id: str = ""
     """op_id of the last try-on op applied ('' outside a try-on): the drapes
     solved after it carry it as their edit_id, so a recording matches them per op"""
+    tryon_guide: str = "proxy"
+    """what a try-on drag slides along: 'proxy', the design's body's ellipsoid
+    proxy (couture.cloth.proxy, Meng §4: a bound of the body, 3.5x faster to
+    query than the exact mesh; the end of the drag is pushed out of the
+    model's body once more), or 'body', the model's body itself"""
+    proxy_loader: Callable[[str], object] = _load_proxy
+    """body name -> its proxy (default couture.cloth.proxy.load_body_proxy,
+    cached on disk per body mesh)"""
+    _proxy: tuple[str, object] | None = field(default=None, repr=False)
+    """(body name, proxy) of the last drag: another body gets its own"""
 
     def __post_init__(self) -> None:
+        if self.tryon_guide not in TRYON_GUIDES:
+            raise ValueError(f"tryon_guide {self.tryon_guide!r}; use one of {TRYON_GUIDES}")
         self.solver = get_solver(self.method)
 
     # -- inputs from the bus: designs and meshes are matched before they are taken
@@ -374,6 +396,7 @@ class SolveService:
                 current[level] = TryOn.start(lm.mesh, x, sewn=sewn if op == "start" else True)
         if op != "start":
             trial = {level: _copy_tryon(t) for level, t in current.items()}
+            guide = self.drag_guide() if op == "drag" else None
             for level, t in trial.items():
                 model = self.levels[level].model
                 t.apply(
@@ -384,6 +407,7 @@ class SolveService:
                     seam=None if seam < 0 else seam,
                     body=model.body,
                     offset=model.contact_offset,
+                    guide=guide if model.body is not None else None,
                 )
             current = trial
         self.tryon = current
@@ -393,6 +417,18 @@ class SolveService:
             lm.x = current[level].x.copy()
             lm.converged = False
         self.predictions.clear()
+
+    def drag_guide(self):
+        """What a try-on drag slides along: the held design's body's proxy
+        (loaded once per body: a design on another body loads that body's),
+        or None (slide along the model's body: ``tryon_guide='body'``, or
+        a scene without a body)."""
+        if self.tryon_guide != "proxy" or self.design is None or not self.design.scene.body:
+            return None
+        name = self.design.body.name
+        if self._proxy is None or self._proxy[0] != name:
+            self._proxy = (name, self.proxy_loader(name))
+        return self._proxy[1]
 
 
 def _copy_tryon(t: TryOn) -> TryOn:

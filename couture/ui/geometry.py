@@ -80,6 +80,44 @@ def ray_hit(x: np.ndarray, tris: np.ndarray, origin, direction) -> tuple[Materia
     return MaterialPoint(k, np.array([1 - u[k] - v[k], u[k], v[k]])), float(t[k])
 
 
+@dataclass
+class BodyPick:
+    """Where a ray meets the body's ellipsoid proxy (:func:`pick_body`)."""
+
+    point: np.ndarray
+    """[m], shape (3,): on the proxy, within its fit error outside the body"""
+    normal: np.ndarray
+    """outward unit normal of the ellipsoid there, shape (3,)"""
+    t: float
+    """[m] along the unit ray direction"""
+    leaf: int
+    """index of the ellipsoid in ``proxy.leaves``"""
+    region: str
+    """its body region ('torso', 'arm_l', ...)"""
+    error: float
+    """[m] its leaf's fit error (max of Meng's normal distance and the
+    overshoot): the body lies within about this of ``point``"""
+
+
+def pick_body(ray_origin, ray_dir, proxy) -> BodyPick | None:
+    """The body point a ray (a click in the 3D view) lands on: its first
+    intersection with the ellipsoid proxy (couture.cloth.proxy, Meng §4),
+    closed-form per ellipsoid, instead of a ray against every body triangle;
+    None on a miss. ValueError for a zero or non-finite ray."""
+    hit, t, q, n, leaf = proxy.raycast(np.asarray(ray_origin, np.float64), np.asarray(ray_dir, np.float64))
+    if not hit[0]:
+        return None
+    k = int(leaf[0])
+    return BodyPick(
+        point=q[0].copy(),
+        normal=n[0].copy(),
+        t=float(t[0]),
+        leaf=k,
+        region=proxy.regions[k],
+        error=float(proxy.nodes[proxy.leaves[k]].error),
+    )
+
+
 def closest_material_point(x: np.ndarray, tris: np.ndarray, p) -> MaterialPoint:
     """Material point at the vertex of ``x`` nearest to the 3D point ``p``
     (a drag's grab point lies on the surface, so the nearest vertex's
