@@ -571,6 +571,40 @@ def test_tryon_buttons_make_tryon_messages(ui):
     ui.on_tryon = None
 
 
+def test_a_click_on_the_body_is_a_try_on_drag_target(ui):
+    """A ray on the body (what viser reports for a click on it) picks a point
+    through the body's proxy; "Drag to picked point" sends the drag that turns
+    the panel's centroid to the point's azimuth about the torso axis and
+    raises it to its height (checked by turning the centroid with the op); a
+    ray past the body picks nothing and the button then sends nothing."""
+    from couture.tryon import TORSO_AXIS_POINT, UP, panel_vertices, rotation_matrix
+    from couture.ui.geometry import ray_hit
+
+    sent: list[dict] = []
+    ui.on_tryon = sent.append
+    assert ui.view3d.body_name == "default"
+    eye, d = np.array([0.8, 0.3, 2.5]), np.array([-0.8, 0.0, -2.5])
+    pick = ui.pick_body(eye, d)
+    assert pick is not None and pick.region == "torso" and ui.tryon.target is pick
+    assert ui.view3d.body_marker.visible
+    t_mesh = ray_hit(ui.view3d.body_vertices, ui.view3d.body_faces, eye, d / np.linalg.norm(d))[1]
+    assert t_mesh - 0.05 < pick.t <= t_mesh + 1e-3  # on the proxy, just before the body
+    name = ui.demo_mesh.panel_names[0]
+    ui.tryon.panel.value = name
+    op = ui.tryon.click("Drag to picked point")
+    assert sent == [op] and op["op"] == "drag" and op["panel"] == name
+    c = ui.view3d.x[panel_vertices(ui.demo_mesh, name)].mean(axis=0)
+    moved = (c - TORSO_AXIS_POINT) @ rotation_matrix(UP, op["angle"]).T + TORSO_AXIS_POINT
+    moved[1] += op["vector"][1]
+    r_moved, r_pick = moved - TORSO_AXIS_POINT, pick.point - TORSO_AXIS_POINT
+    assert np.arctan2(r_moved[0], r_moved[2]) == pytest.approx(np.arctan2(r_pick[0], r_pick[2]), abs=1e-9)
+    assert moved[1] == pytest.approx(pick.point[1], abs=1e-12)
+    assert ui.pick_body(eye, -d) is None and ui.tryon.target is None and not ui.view3d.body_marker.visible
+    assert ui.tryon.click("Drag to picked point") is None and len(sent) == 1
+    assert "click the body first" in ui.tryon.help.content
+    ui.on_tryon = None
+
+
 def test_body_fitted_sloper_sliders_show_the_bodys_measurements(ui):
     """A waist-seamed dress on XL drafts from XL's measured girths: the option
     sliders show them (not the mannequin's defaults), and a design's own value wins."""

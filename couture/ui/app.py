@@ -187,6 +187,7 @@ class CoutureUI:
         )
         self.view3d.on_tug = self.gestures.tug
         self.view3d.on_pick = self._pick
+        self.view3d.on_body_click = self.pick_body
         self.view2d.on_handle_drag = self.gestures.handle_drag
         self.view2d.on_click = self.tools.click
         self.renderer = DrapeRenderer(
@@ -384,11 +385,29 @@ class CoutureUI:
     def _adopt(self, design: Design) -> None:
         self.controls.show_design(design)
         self.view3d.set_fabric(design.fabric)
+        shown = self.view3d.body_name
         try:
             self.view3d.set_body(design.body.name)
         except ValueError:
             log.warning("unknown body %r: the view keeps %r", design.body.name, self.view3d.body_name)
+        if self.view3d.body_name != shown:  # a point picked on the old body is no target
+            self.tryon.set_target(None)
+            self.view3d.show_body_marker(None)
         self.drafter.slot.put(design)
+
+    def pick_body(self, origin, direction):
+        """A click on the body in the 3D view: the point its ray meets the
+        shown body's ellipsoid proxy (couture.ui.geometry.pick_body; the proxy
+        is loaded, or built and cached, once per body) becomes the Try-on
+        folder's drag target. Returns the BodyPick, or None on a miss."""
+        from couture.cloth.proxy import load_body_proxy
+        from couture.ui.geometry import pick_body
+
+        proxy = load_body_proxy(self.view3d.body_name, verbose=False)
+        pick = pick_body(origin, direction, proxy)
+        self.tryon.set_target(pick)
+        self.view3d.show_body_marker(None if pick is None else pick.point)
+        return pick
 
     def _pick(self, mp: MaterialPoint) -> None:
         self.view2d.show_marker(mp)

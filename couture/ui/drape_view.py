@@ -77,6 +77,9 @@ class DrapeView:
         """how often triangles went to the browser (a new mesh)"""
         self.on_tug: TugCallback | None = None
         self.on_pick: Callable[[MaterialPoint], None] | None = None
+        self.on_body_click: Callable[[np.ndarray, np.ndarray], None] | None = None
+        """cb(ray origin, ray direction) of a click on the body"""
+        self.body_handle = None
         self._lock = threading.RLock()
         self._tug: dict | None = None
 
@@ -119,6 +122,9 @@ class DrapeView:
         self.marker = server.scene.add_icosphere(
             "/marker", radius=0.012, color=(230, 30, 30), visible=False, cast_shadow=False, receive_shadow=False
         )
+        self.body_marker = server.scene.add_icosphere(
+            "/body_marker", radius=0.01, color=(40, 90, 220), visible=False, cast_shadow=False, receive_shadow=False
+        )
         for h in [self.plain, *self.bands]:
             h.on_drag(self._on_drag)
             h.on_click(self._on_click)
@@ -135,7 +141,7 @@ class DrapeView:
             self.body_distance = None
             self.body_name = name
             if self.show_body:
-                self.server.scene.add_mesh_simple(
+                self.body_handle = self.server.scene.add_mesh_simple(
                     "/body",
                     self.body_vertices.astype(np.float32),
                     self.body_faces.astype(np.uint32),
@@ -144,6 +150,7 @@ class DrapeView:
                     cast_shadow=False,
                     receive_shadow=False,
                 )
+                self.body_handle.on_click(self._on_body_click)
 
     def fit_body(self, aspect: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
         """Camera (position, look_at) [m] of a front view in which the
@@ -255,7 +262,19 @@ class DrapeView:
         self.marker.position = tuple(mp.on(self.x, self.mesh.tris))
         self.marker.visible = True
 
+    def show_body_marker(self, point) -> None:
+        """The point picked on the body (a try-on drag's target), or none."""
+        if point is None:
+            self.body_marker.visible = False
+            return
+        self.body_marker.position = np.asarray(point, np.float64)
+        self.body_marker.visible = True
+
     # -- interaction ----------------------------------------------------------------
+
+    def _on_body_click(self, event) -> None:
+        if self.on_body_click is not None and event.ray_origin is not None and event.ray_direction is not None:
+            self.on_body_click(np.asarray(event.ray_origin, np.float64), np.asarray(event.ray_direction, np.float64))
 
     def _on_click(self, event) -> None:
         with self._lock:

@@ -1,7 +1,10 @@
 """The "Try-on" folder on the 3D server's panel (Meng 2010 §6, couture.tryon):
 pick a panel, then move it, turn it, drag it around or up and down the body,
 fix or release it; sew the next seam or unsew the last; start sequential
-sewing with no seam sewn. Each button hands one op (the fields of a
+sewing with no seam sewn. A click on the body in the 3D view picks a point
+(its ray against the body's ellipsoid proxy, couture.ui.geometry.pick_body);
+"Drag to picked point" then slides the panel around and along the body until
+its centroid is at that point's azimuth and height. Each button hands one op (the fields of a
 ``couture/tryon/v1`` message) to ``on_op``; the solver applies it to its
 drape and re-solves."""
 
@@ -28,6 +31,8 @@ class TryOnPanel:
     ):
         """``drape()``: (mesh, x) on screen, for a panel's outward direction."""
         self.on_op, self.drape = on_op, drape
+        self.target = None
+        """the BodyPick a click on the body made (couture.ui.geometry), or None"""
         with gui.add_folder("Try-on", expand_by_default=False):
             self.help = gui.add_markdown("Pick a panel; each button re-drapes from the current drape.")
             self.panel = gui.add_dropdown("panel", (NO_PANEL,), initial_value=NO_PANEL)
@@ -44,6 +49,7 @@ class TryOnPanel:
                 ("Drag around -", lambda: self._panel_op("drag", angle=-self._angle())),
                 ("Drag up", lambda: self._panel_op("drag", vector=[0.0, self._step(), 0.0])),
                 ("Drag down", lambda: self._panel_op("drag", vector=[0.0, -self._step(), 0.0])),
+                ("Drag to picked point", self._to_target),
                 ("Fix", lambda: self._panel_op("fix")),
                 ("Unfix", lambda: self._panel_op("unfix")),
                 ("Sew next seam", lambda: {"op": "sew", "seam": -1}),
@@ -80,6 +86,37 @@ class TryOnPanel:
             if np.linalg.norm(c) > 1e-6:
                 d = c / np.linalg.norm(c)
         return (self._step() * d).tolist()
+
+    def set_target(self, pick) -> None:
+        """The point picked on the body (a BodyPick), or None to forget it."""
+        self.target = pick
+        if pick is not None:
+            p = pick.point
+            self.help.content = (
+                f"picked the body ({pick.region}) at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m; "
+                "**Drag to picked point** slides the panel there."
+            )
+
+    def _to_target(self) -> TryOnOp | None:
+        """A drag of the panel about the torso axis and along it that takes
+        its centroid (on screen) to the picked point's azimuth and height."""
+        from couture.tryon import TORSO_AXIS_POINT, panel_vertices
+
+        if self.target is None:
+            self.help.content = "**drag to picked point**: click the body first."
+            return None
+        op = self._panel_op("drag")
+        if op is None:
+            return None
+        mesh, x = self.drape()
+        if mesh is None or x is None or op["panel"] not in mesh.panel_names:
+            self.help.content = "**drag to picked point**: no drape of that panel on screen."
+            return None
+        c = np.asarray(x)[panel_vertices(mesh, op["panel"])].mean(axis=0) - TORSO_AXIS_POINT
+        t = np.asarray(self.target.point) - TORSO_AXIS_POINT
+        turn = math.atan2(t[0], t[2]) - math.atan2(c[0], c[2])  # about +y, counter-clockwise from above
+        turn = (turn + math.pi) % (2.0 * math.pi) - math.pi
+        return {**op, "angle": turn, "vector": [0.0, float(t[1] - c[1]), 0.0]}
 
     def _panel_op(self, op: str, **kw: Any) -> TryOnOp | None:
         panel = str(self.panel.value)
