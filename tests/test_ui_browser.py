@@ -175,3 +175,32 @@ def test_adjust_folder_button_and_hem_handle_drag_send_requests(session):
     assert loop == "hem" and amount < -0.005  # up: shorter
     page.screenshot(path=str(ARTIFACTS / "ui_adjust.png"))
     ui.on_adjust = None
+
+
+def test_a_click_on_the_body_picks_a_try_on_target(session):
+    """A click on the mannequin's chest (above the demo sheet) in the 3D view
+    reaches the server as a ray, which picks a point of the body through its
+    ellipsoid proxy: the Try-on folder's drag target and the blue marker."""
+    from couture.ui.geometry import CameraState
+
+    page, ui = session["page"], session["ui"]
+    V = ui.view3d.body_vertices
+    chest = (np.abs(V[:, 1] - 0.35) < 0.02) & (np.abs(V[:, 0]) < 0.05)
+    p = V[np.flatnonzero(chest)[np.argmax(V[chest, 2])]]
+    ui.tryon.set_target(None)
+    for _ in range(3):  # a click while the page is still drawing may be dropped
+        cam = CameraState.from_viser(stable_camera(session["c3"], page))
+        px = cam.to_pixels(p[None])[0] + _iframe_origin(page, "#view3d")
+        page.mouse.click(*px)
+        try:
+            wait_until(lambda: ui.tryon.target is not None, 20, page)
+        except TimeoutError:
+            continue
+        break
+    else:
+        pytest.fail("no body pick reached the server in 3 clicks")
+    pick = ui.tryon.target
+    assert pick.region in ("torso", "arm_l", "arm_r", "head")
+    assert ui.view3d.body_marker.visible and "picked the body" in ui.tryon.help.content
+    ui.tryon.set_target(None)
+    ui.view3d.show_body_marker(None)
