@@ -76,6 +76,17 @@ class PatternRejected(ValueError):
         return cls(msg.generation, msg.reason, msg.node, msg.element, msg.design_id)
 
 
+class TryOnRejected(ValueError):
+    """A solver refused a try-on op (an unknown panel, a drag that cannot leave
+    the body, ...): no drape will answer it; the drape stays as it was."""
+
+    def __init__(self, op_id: str, reason: str, node: str = "") -> None:
+        super().__init__(f"{node or 'solver'}: {reason}")
+        self.op_id = op_id
+        self.reason = reason
+        self.node = node
+
+
 def load_design(path: str | os.PathLike) -> Design:
     """Read a pattern JSON file (``couture/design/v1``); a top-level ``schema``
     key, if present, must name that type. A syntax error raises ValueError
@@ -131,6 +142,7 @@ class Client:
         """the newest generation this client asked for"""
         self._own = OwnDesigns()
         self._rejected: OrderedDict[tuple[str, str], RejectedMsg] = OrderedDict()
+        self._tryon_rejected: OrderedDict[str, RejectedMsg] = OrderedDict()
         """(design_id, or '#<generation>' when it had none; node) -> that node's first rejection of that design"""
         self._followers: list[queue.SimpleQueue] = []
         self._bus: Bus | None = None
@@ -195,6 +207,14 @@ class Client:
 
     def _on_rejected(self, msg: RejectedMsg) -> None:
         with self._cond:
+            if msg.op_id:  # a try-on op, not a design (wait_tryon)
+                self._tryon_rejected[msg.op_id] = msg
+                while len(self._tryon_rejected) > 256:
+                    self._tryon_rejected.popitem(last=False)
+                for q in self._followers:
+                    q.put(msg)
+                self._cond.notify_all()
+                return
             key = (msg.design_id or f"#{msg.generation}", msg.node)
             if key not in self._rejected:
                 self._rejected[key] = msg
@@ -391,10 +411,15 @@ class Client:
         return msg
 
     def wait_tryon(self, op_id: str, kind: str = "fine", timeout: float = 60.0) -> DrapeMsg:
-        """The final drape of ``kind`` answering try-on op ``op_id``; TimeoutError after ``timeout`` [s]."""
+        """The final drape of ``kind`` answering try-on op ``op_id``; raises
+        :class:`TryOnRejected` as soon as a solver refuses the op, TimeoutError
+        after ``timeout`` [s]."""
         deadline = time.monotonic() + timeout
         with self._cond:
             while True:
+                rej = self._tryon_rejected.get(op_id)
+                if rej is not None:
+                    raise TryOnRejected(op_id, rej.reason, rej.node)
                 for m in reversed(self._drapes[kind]):
                     if m.final and m.edit_id == op_id:
                         return m

@@ -377,8 +377,8 @@ class StatusMsg(Message, kw_only=True):
 
 class RejectedMsg(Message, kw_only=True):
     """A design a node refused, and why. remesher (drafting, validation,
-    meshing), solver (a fabric or scene it cannot simulate) -> ui, clients.
-    Key ``rejected``.
+    meshing), solver (a fabric or scene it cannot simulate, or a try-on op it
+    cannot apply: ``op_id``) -> ui, clients. Key ``rejected``.
 
     Published at once, instead of meshes or drapes: a publisher waiting for
     the drape of this design stops waiting. The header's ``generation`` is
@@ -401,6 +401,10 @@ class RejectedMsg(Message, kw_only=True):
     """the pattern's name (file stem), if it had one"""
     source: str = ""
     """who published the pattern ('ui', 'client', 'replay', ...)"""
+    op_id: str = ""
+    """set when what was refused is a try-on op (``tryon``), not a design: that
+    op's ``op_id`` (``element`` 'tryon.<op>'); the design and the drape on the
+    solver stay as they were"""
 
 
 class SolveRequestMsg(Message, kw_only=True):

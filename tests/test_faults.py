@@ -356,6 +356,32 @@ def drag(client: Client, timeout: float = 60.0) -> tuple[EditMsg, float]:
     return press, d
 
 
+def test_a_refused_tryon_op_is_answered_and_changes_nothing(live):
+    """A try-on op the solver cannot apply (a panel the garment does not have)
+    gets a ``rejected`` answer naming the op and the problem at once, instead
+    of a drape the sender would wait for in vain; the design stays accepted,
+    the ui shows why in its Try-on folder, and a valid op afterwards drapes."""
+    from couture.client import TryOnRejected
+
+    sup, client = live["sup"], live["client"]
+    pids0 = sup.pids()
+    gen = client.current_generation
+    t0 = time.monotonic()
+    bad = client.send_tryon("move", "no_such_panel", vector=[0.0, 0.0, 0.01])
+    with pytest.raises(TryOnRejected, match="no_such_panel") as err:
+        client.wait_tryon(bad.op_id, timeout=60)
+    print(f"\nrefused try-on answered in {time.monotonic() - t0:.2f} s: {err.value}")
+    assert err.value.op_id == bad.op_id and err.value.node == "solver-newton"
+    assert client.rejection(gen) is None  # the design itself is not rejected
+    mesh = client.mesh_of(gen)
+    assert mesh is not None and mesh.panel_names
+    ok = client.send_tryon("fix", mesh.panel_names[0])
+    d = client.wait_tryon(ok.op_id, timeout=120)
+    assert d.final and d.generation == gen
+    client.send_tryon("unfix", mesh.panel_names[0])
+    assert sup.pids() == pids0
+
+
 @pytest.mark.parametrize("node", NODES)
 def test_kill_9_mid_drag(live, node):
     sup, client = live["sup"], live["client"]

@@ -554,6 +554,8 @@ def test_tryon_buttons_make_tryon_messages(ui):
     ui.tryon.click("Sew next seam")
     ui.tryon.click("Start sequential sewing")
     assert [s["op"] for s in sent] == ["drag", "drag", "move", "rotate", "sew", "start"]
+    ui.set_tryon_note("solver-newton: try-on move refused: no panel 'x'")
+    assert "refused" in ui.tryon.help.content and "no panel 'x'" in ui.tryon.help.content
     msgs = [decode(encode(tryon_msg(s, generation=4)), TryOnMsg) for s in sent]
     assert msgs[0].panel == names[0] and msgs[0].angle == pytest.approx(-np.pi / 6)
     np.testing.assert_allclose(msgs[1].vector.numpy(), [0.0, -0.04, 0.0])

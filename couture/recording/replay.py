@@ -120,6 +120,8 @@ def main(config: ReplayConfig, stop: StopFlag | None = None) -> int:
                         cv.notify_all()
 
             def on_rejected(msg: RejectedMsg) -> None:
+                if msg.op_id:
+                    return  # a refused try-on op, not a design
                 with cv:
                     rejected.add(msg.design_id)
                     cv.notify_all()

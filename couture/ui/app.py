@@ -327,6 +327,11 @@ class CoutureUI:
         range) at the top of the status; '' clears it."""
         self.status.set_rejection(text)
 
+    def set_tryon_note(self, text: str) -> None:
+        """A solver refused a try-on op: why, in the Try-on folder (the design
+        and its drape stay as they were)."""
+        self.tryon.set_refused(text)
+
     def set_status_notes(self, notes: list[str]) -> None:
         """Extra lines under the status table (the adapter's view of the pipeline)."""
         self.status.set_notes(notes)

@@ -97,6 +97,10 @@ class TryOnPanel:
                 "**Drag to picked point** slides the panel there."
             )
 
+    def set_refused(self, text: str) -> None:
+        """A solver refused the last op sent (its reason); the drape stays."""
+        self.help.content = f"**refused**: {text}"
+
     def _to_target(self) -> TryOnOp | None:
         """A drag of the panel about the torso axis and along it that takes
         its centroid (on screen) to the picked point's azimuth and height."""

@@ -367,6 +367,17 @@ def serve(
         except TryOnError as e:
             node.count("bad_tryon")
             node.error(f"try-on {msg.op} {msg.op_id}: {e}")
+            # the sender waits for a drape answering the op: tell it there will be none
+            rejected_pub.put(
+                RejectedMsg(
+                    node=config.name,
+                    generation=msg.generation,
+                    element=f"tryon.{msg.op}",
+                    reason=f"try-on {msg.op} refused: {e}",
+                    op_id=msg.op_id,
+                    source="tryon",
+                )
+            )
             return
         node.count("tryon")
         log.info("try-on %s %s applied (panel %r, seam %d)", msg.op, msg.op_id, msg.panel, msg.seam)

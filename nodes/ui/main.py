@@ -408,7 +408,12 @@ class UIAdapter:
         """A design a node refused: shown at the top of the status until a
         later mesh of another design arrives. A solver's rejection of the
         design on screen (the remesher meshed it) is shown even when its
-        other level's mesh came later."""
+        other level's mesh came later. A refused try-on op is shown in the
+        try-on folder; the design stays accepted."""
+        if msg.op_id:
+            self.ui.set_tryon_note(f"{msg.node}: {msg.reason}")
+            self.node.count("rejected_in")
+            return
         with self._lock:
             mesh_ns, mesh_id = self._newest_mesh
             if (msg.stamp_ns < mesh_ns and not _same_design(msg.design_id, mesh_id)) or (
