@@ -356,6 +356,37 @@ def drag(client: Client, timeout: float = 60.0) -> tuple[EditMsg, float]:
     return press, d
 
 
+def test_a_release_resumes_the_solve_its_press_cut_off(live):
+    """A press holds the solver (no solve runs mid-drag); a design that arrives
+    during the drag waits, and the release starts its solve even though the
+    gesture brings no newer design (it ended where it began). Before, the
+    solve never ran and the screen kept a stale drape until the next design."""
+    client = live["client"]
+    solver = "solver-newton"
+    t0 = time.time_ns()
+    before = fresh_status(client, solver, t0).counters
+    client.wait_predictions_ready(60, generation=client.current_generation)
+    press = client.send_edit("param:length", [0.0, 0.0], phase="press")
+    wait_for(
+        "the solver to see the press",
+        lambda: (s := client.status.get(solver)) and s.counters.get("presses", 0) > before.get("presses", 0),
+        30,
+    )
+    d = msgspec.structs.replace(SMALL, sloper=Sloper(kind="skirt", params={"length": 0.57}))
+    gen = client.publish_pattern(d, name="faults")
+    wait_for(
+        "the solver to take both meshes of the new design",
+        lambda: (
+            (s := client.status.get(solver)) and s.counters.get("meshes_taken", 0) >= before.get("meshes_taken", 0) + 2
+        ),
+        60,
+    )
+    assert not any(m.final and m.generation == gen for m in client.drapes("fine")), "solved mid-drag"
+    client.send_edit("param:length", [0.0, 0.0], phase="release", edit_id=press.edit_id)
+    fine = client.wait_drape("fine", generation=gen, final=True, timeout=90)
+    assert fine.converged, fine.diagnosis
+
+
 def test_a_refused_tryon_op_is_answered_and_changes_nothing(live):
     """A try-on op the solver cannot apply (a panel the garment does not have)
     gets a ``rejected`` answer naming the op and the problem at once, instead

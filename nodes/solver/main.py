@@ -7,7 +7,9 @@ own node name on every drape, so two can run at once for comparison.
 Behaviour (DESIGN §2): a new pattern generation aborts the running solve; a
 press aborts it too and no solve runs while a drag is in progress (the
 sensitivity node previews); after release the next meshes warm-start from
-the last prediction. Progress drapes go out every ``progress_period_s``.
+the last prediction, and a solve the press cut off (or a mesh that arrived
+mid-drag) is resumed even when no newer design follows (counted
+``resumed_solves``). Progress drapes go out every ``progress_period_s``.
 A mesh whose design has a fabric outside its physical range (the remesher
 rejects those first) is rejected on ``rejected`` (with the design's identity
 and the generation the remesher gave it) and the solver keeps its state; a
@@ -193,7 +195,9 @@ def serve(
     pubs = {lv: bus.publisher(f"drape/{lv}", DrapeMsg) for lv in ("coarse", "fine")}
     rejected_pub = bus.publisher("rejected", RejectedMsg)
     lock = threading.Lock()
-    state: dict = {"gesture": "", "dragging": False, "abort": False}
+    state: dict = {"gesture": "", "dragging": False, "abort": False, "unfinished": False}
+    """unfinished: the last solve was cut off (a press, a new mesh, a try-on op);
+    a release that brings no new design resumes it"""
     tryon_ops: list[TryOnMsg] = []
     """try-on ops received, applied in order by the worker before its next solve"""
 
@@ -253,18 +257,22 @@ def serve(
             return  # another member of the pool solves this session
         with lock:
             if state["dragging"] or not service.ready():
+                # a mesh that arrives mid-drag waits for the release
+                state["unfinished"] = state["unfinished"] or (state["dragging"] and service.ready())
                 return
             state["abort"] = False
             ops = list(tryon_ops)
             tryon_ops.clear()
         for op in ops:
             apply_tryon(op)
+        state["unfinished"] = True
         service.run(
             should_abort=should_abort,
             on_progress=on_progress,
             on_level=on_level,
             progress_period_s=config.progress_period_s,
         )
+        state["unfinished"] = bool(state["abort"])
 
     def take(matched: Matched[IncomingMesh]) -> None:
         try:
@@ -283,6 +291,7 @@ def serve(
                 )
             )
             return
+        node.count("meshes_taken")
         if ready:
             worker.submit(f"{slot}solve", solve_job)
 
@@ -326,8 +335,14 @@ def serve(
             state["gesture"] = msg.edit_id
             state["dragging"] = True
             state["abort"] = True
+            node.count("presses")
         elif msg.phase == "release" and msg.edit_id == state["gesture"]:
             state["dragging"] = False
+            if state["unfinished"]:
+                # the press cut a solve off; a gesture that ends where it began (or a
+                # design the remesher refuses) brings no new mesh to restart it
+                node.count("resumed_solves")
+                worker.submit(f"{slot}solve", solve_job)
 
     def on_prediction(msg: DrapeMsg) -> None:
         # a prediction lives on a mesh this solver matched (the release's is
