@@ -168,6 +168,9 @@ class Supervisor:
             connect=listen,
             listen=[f"{proto}/127.0.0.1:0"],
             mode="peer",
+            # the user's Zenoh settings hold for every node; the explicit
+            # endpoints and mode above still win over the file's
+            config_file=cfg.config_file,
             multicast=cfg.multicast,
             tls=cfg.tls,
         )

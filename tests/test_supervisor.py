@@ -228,3 +228,36 @@ def test_up_only_picks_nodes_by_kind_and_names_what_it_cannot_pick():
         [sys.executable, "-m", "couture", "up", "--only", "ui", "--no-ui"], capture_output=True, text=True, timeout=60
     )
     assert r.returncode == 2 and "--only ui: no such node here (not with --no-ui)" in r.stderr, r.stderr
+
+
+def test_up_passes_its_zenoh_config_file_to_every_node(tmp_path):
+    """``couture up --config FILE``: each node it starts joins with the same
+    Zenoh config file (before, only the supervisor's router read it); the
+    file's settings apply, the endpoints given on the command line win."""
+    conf = tmp_path / "zenoh.json5"
+    conf.write_text("{ transport: { unicast: { max_links: 1 } }, scouting: { delay: 150 } }\n")
+    session = f"s{uuid.uuid4().hex[:8]}"
+    port = free_port()
+    sup = subprocess.Popen(
+        [sys.executable, "-m", "couture.cli", "up", "--no-ui", "--no-adjust", "--only", "remesher", "sensitivity"]
+        + ["--session", session, "--listen", f"tcp/127.0.0.1:{port}", "--config", str(conf)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        with open_session(BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"])) as bus:
+            assert bus.wait_nodes(["remesher", "sensitivity"], 60) == []
+        children = psutil.Process(sup.pid).children(recursive=True)
+        lines = [c.cmdline() for c in children]
+        nodes = [cl for cl in lines if "--name" in cl]
+        assert len(nodes) == 2, lines
+        for cl in nodes:
+            i = cl.index("--config")
+            assert cl[i + 1] == str(conf), cl
+    finally:
+        sup.send_signal(signal.SIGINT)
+        try:
+            sup.wait(30)
+        except subprocess.TimeoutExpired:
+            sup.kill()
