@@ -101,6 +101,11 @@ def test_colour_maps_draw_bands_with_legend(ui):
         ui.controls.field_chosen()
         assert ui.view3d.scale is not None and "background:rgb" in ui.controls.legend.content
         assert any(h.visible for h in ui.view3d.bands) and not ui.view3d.plain.visible
+    ui.controls.field.value = "pressure"
+    ui.controls.field_chosen()
+    p = ui.view3d.field_values()
+    assert p is not None and len(p) == ui.view3d.mesh.n_triangles and (p >= 0).all() and np.isfinite(p).all()
+    assert ui.view3d.body_distance is not None and ui.view3d.body_distance.name == ui.view3d.body_name
     ui.controls.field.value = "none"
     ui.controls.field_chosen()
     assert ui.view3d.plain.visible and ui.controls.legend.content == ""

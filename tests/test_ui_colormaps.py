@@ -64,6 +64,35 @@ def test_contact_pressure_is_force_over_area(sheet):
     assert np.count_nonzero(p) == 1
 
 
+def test_pressure_map_shows_the_solvers_contact():
+    """The UI's pressure map uses the solver's contact: its stiffness for the
+    fabric (and the design's scale), its C² law and its body SDF, so the map
+    equals the contact force a ClothModel computes, over the rest area."""
+    from couture.cloth.model import ClothModel, Scene
+    from schemas.design import Fabric
+
+    fab = Fabric(stretch_stiffness=35.0, poisson_ratio=0.25)
+    model = ClothModel(grid_sheet(0.4, 0.3, 12, 9), fab, Scene(body="mannequin"))
+    assert cm.solver_contact_stiffness(35.0, 0.25) == pytest.approx(model.contact_stiffness, rel=1e-12)
+    assert cm.solver_contact_stiffness(35.0, 0.25, 2.0) == pytest.approx(2 * model.contact_stiffness, rel=1e-12)
+    dist = cm.BodyDistance("default")
+    # points around the chest, a few mm either side of the offset layer's edge
+    rng = np.random.default_rng(3)
+    pts = np.array([0.0, 0.35, 0.16]) + rng.normal(0.0, 0.03, (40, 3))
+    phi_model, _ = model.body.phi_grad(pts)
+    np.testing.assert_allclose(dist(pts), phi_model, atol=1e-12)
+    sheet = grid_sheet(0.4, 0.3, 12, 9)
+    d = np.full(len(sheet.X), 0.02)
+    d[:5] = [0.0095, 0.009, 0.005, 0.0, -0.002]  # on the ramp, beyond it, at and under the surface
+    p = cm.contact_pressure(sheet.X, sheet.tris, d, 0.01, model.contact_stiffness, model.contact_smoothing)
+    A = cm.rest_vertex_areas(sheet.X, sheet.tris)
+    np.testing.assert_allclose(p[:5] * A[:5], model.contact_normal_force(0.01 - d[:5]), rtol=1e-12)
+    k, eps = model.contact_stiffness, model.contact_smoothing
+    assert p[0] * A[0] == pytest.approx(0.5 * k * 0.0005**2 / eps)  # the ramp, by hand
+    assert p[2] * A[2] == pytest.approx(k * (0.005 - 0.5 * eps))
+    assert np.count_nonzero(p) == 5
+
+
 def test_color_scale_bands_and_legend():
     s = cm.ColorScale(-1.0, 1.0, 4, diverging=True, unit="", label="strain")
     np.testing.assert_array_equal(s.band_of(np.array([-5, -0.9, -0.1, 0.1, 0.9, 5])), [0, 0, 1, 2, 3, 3])

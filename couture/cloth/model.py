@@ -71,6 +71,16 @@ CONTACT_STIFFNESS_PER_MU = 100.0
 """default contact penalty stiffness in units of mu"""
 
 
+def penalty_force(pen, k: float, eps: float) -> np.ndarray:
+    """Contact normal force [N] of penetrations ``pen`` [m] into the offset
+    layer, vectorized ``kernels.contact_law``: 0 for pen <= 0, k pen²/(2 eps)
+    on the ramp, then k (pen - eps/2)."""
+    pen = np.asarray(pen, dtype=np.float64)
+    if eps <= 0:
+        return k * np.maximum(pen, 0.0)
+    return np.where(pen <= 0, 0.0, np.where(pen < eps, 0.5 * k * pen * pen / eps, k * (pen - 0.5 * eps)))
+
+
 class Body(Protocol):
     """A rigid body the cloth rests on, as a signed distance field (positive outside)."""
 
@@ -537,11 +547,7 @@ class ClothModel:
     def contact_normal_force(self, pen: np.ndarray) -> np.ndarray:
         """Contact force magnitude [N] per vertex for penetrations ``pen`` [m] of
         the offset layer (kernels.contact_law; 0 outside)."""
-        pen = np.asarray(pen, dtype=np.float64)
-        k, eps = self.contact_stiffness, self.contact_smoothing
-        if eps <= 0:
-            return k * np.maximum(pen, 0.0)
-        return np.where(pen <= 0, 0.0, np.where(pen < eps, 0.5 * k * pen * pen / eps, k * (pen - 0.5 * eps)))
+        return penalty_force(pen, self.contact_stiffness, self.contact_smoothing)
 
     def friction_excess(self, x: np.ndarray) -> float:
         """Largest amount [N] by which an anchor's tangential force exceeds the static

@@ -107,42 +107,55 @@ def rest_vertex_areas(X: np.ndarray, tris: np.ndarray) -> np.ndarray:
 
 
 def contact_pressure(
-    X: np.ndarray, tris: np.ndarray, signed_distance: np.ndarray, offset: float = 0.01, contact_stiffness: float = 100.0
+    X: np.ndarray,
+    tris: np.ndarray,
+    signed_distance: np.ndarray,
+    offset: float = 0.01,
+    contact_stiffness: float = 100.0,
+    smoothing: float = 0.0,
 ) -> np.ndarray:
     """Body-contact pressure per vertex [Pa], shape (n,).
 
-    The cloth model's contact is a penalty spring per vertex pushing it out to
-    ``offset`` [m] from the body: f = k (offset - d) for d < offset, with
-    ``contact_stiffness`` k [N/m] and ``signed_distance`` d [m] (positive
-    outside the body). Pressure is that force over the vertex's lumped rest
-    area. k should match the solver's contact stiffness for absolute values;
-    the colour scale is relative anyway.
+    The cloth model's contact force per vertex, over the vertex's lumped rest
+    area: the penalty of ``couture.cloth.model.penalty_force`` (the solver's
+    law: stiffness ``contact_stiffness`` k [N/m] with a ramp of width
+    ``smoothing`` [m]; 0: the plain f = k (offset - d)) of the penetration of
+    the ``offset`` [m] layer by ``signed_distance`` d [m] (positive outside
+    the body).
     """
+    from couture.cloth.model import penalty_force
+
     d = np.asarray(signed_distance, np.float64)
-    force = contact_stiffness * np.maximum(offset - d, 0.0)
+    force = penalty_force(offset - d, contact_stiffness, smoothing)
     area = rest_vertex_areas(X, tris)
     return force / np.maximum(area, 1e-12)
 
 
+def solver_contact_stiffness(stretch_stiffness: float, poisson_ratio: float, scale: float = 1.0) -> float:
+    """[N/m] the contact stiffness the solver nodes build for this fabric:
+    CONTACT_STIFFNESS_PER_MU times the membrane shear modulus, times the
+    design's ``contact_stiffness_scale``."""
+    from couture.cloth.model import CONTACT_STIFFNESS_PER_MU, lame_parameters
+
+    mu, _ = lame_parameters(stretch_stiffness, poisson_ratio)
+    return float(scale) * CONTACT_STIFFNESS_PER_MU * mu
+
+
 class BodyDistance:
-    """Approximate signed distance to the mannequin [m]: distance to the
-    nearest body vertex, signed by that vertex's normal. Good to a fraction of
-    the body's edge length (about 1 cm), which is what a pressure colour map
-    needs; the solver uses its own SDF."""
+    """Signed distance to a body [m] (positive outside): the solver's own grid
+    SDF of that body (``couture.cloth.body.load_mannequin_sdf``, cached on
+    disk), so the pressure map shows the contact the solver computed. (A
+    nearest-vertex distance was good to about 1 cm, the whole contact layer.)"""
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
-        import trimesh
-        from scipy.spatial import cKDTree
+    def __init__(self, name: str = "default"):
+        from couture.cloth.body import load_mannequin_sdf
 
-        mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
-        self.vertices = np.asarray(vertices, np.float64)
-        self.normals = np.asarray(mesh.vertex_normals, np.float64)
-        self.tree = cKDTree(self.vertices)
+        self.name = name
+        self.sdf = load_mannequin_sdf(name=name, verbose=False)
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
-        dist, idx = self.tree.query(np.asarray(points, np.float64), k=1)
-        side = np.einsum("ij,ij->i", points - self.vertices[idx], self.normals[idx])
-        return np.where(side >= 0.0, dist, -dist)
+        phi, _ = self.sdf.phi_grad(np.ascontiguousarray(points, dtype=np.float64))
+        return phi
 
 
 # --- colour scales -----------------------------------------------------------
@@ -257,7 +270,8 @@ def field_values(
     poisson_ratio: float = 0.3,
     body_distance: BodyDistance | None = None,
     contact_offset: float = 0.01,
-    contact_stiffness: float = 100.0,
+    contact_stiffness: float | None = None,
+    contact_smoothing: float = 0.001,
 ) -> np.ndarray | None:
     """Per-triangle scalar for a colour-map field (None for 'none', or for
     'pressure' without a body). Pressure, defined per vertex, is averaged to
@@ -269,6 +283,11 @@ def field_values(
     if field == "pressure":
         if body_distance is None:
             return None
-        p = contact_pressure(X, tris, body_distance(x), contact_offset, contact_stiffness)
+        k = (
+            solver_contact_stiffness(stretch_stiffness, poisson_ratio)
+            if contact_stiffness is None
+            else contact_stiffness
+        )
+        p = contact_pressure(X, tris, body_distance(x), contact_offset, k, contact_smoothing)
         return p[tris].mean(axis=1)
     return None

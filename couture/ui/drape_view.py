@@ -72,7 +72,9 @@ class DrapeView:
         self.field = "none"
         self.scale: colormaps.ColorScale | None = None
         self.fabric = Fabric()
-        """material of the stress map"""
+        """material of the stress and pressure maps"""
+        self.contact_scale = 1.0
+        """the design's factor on the solver's contact stiffness (pressure map)"""
         self.mesh_uploads = 0
         """how often triangles went to the browser (a new mesh)"""
         self.on_tug: TugCallback | None = None
@@ -138,8 +140,8 @@ class DrapeView:
                 return
             path = bodies.obj_path(name)
             self.body_vertices, self.body_faces = load_body(path)
-            self.body_distance = None
             self.body_name = name
+            self.body_distance = colormaps.BodyDistance(name) if self.field == "pressure" else None
             if self.show_body:
                 self.body_handle = self.server.scene.add_mesh_simple(
                     "/body",
@@ -180,19 +182,23 @@ class DrapeView:
             self.mesh_uploads += 1
             self._draw()
 
-    def set_fabric(self, fabric: Fabric) -> None:
+    def set_fabric(self, fabric: Fabric, contact_scale: float | None = None) -> None:
+        """The material of the stress and pressure maps, and the design's
+        ``scene.contact_stiffness_scale`` (None: keep the current one)."""
         with self._lock:
-            if fabric == self.fabric:
+            scale = self.contact_scale if contact_scale is None else float(contact_scale)
+            if fabric == self.fabric and scale == self.contact_scale:
                 return
             self.fabric = fabric
-            if self.field == "stress":
+            self.contact_scale = scale
+            if self.field in ("stress", "pressure"):
                 self._draw()
 
     def set_field(self, field: str) -> None:
         with self._lock:
             self.field = field
-            if field == "pressure" and self.body_distance is None:
-                self.body_distance = colormaps.BodyDistance(self.body_vertices, self.body_faces)
+            if field == "pressure" and (self.body_distance is None or self.body_distance.name != self.body_name):
+                self.body_distance = colormaps.BodyDistance(self.body_name or "default")
             self._band_tris = [None] * self.n_bands
             self._draw()
 
@@ -216,6 +222,9 @@ class DrapeView:
             stretch_stiffness=self.fabric.stretch_stiffness,
             poisson_ratio=self.fabric.poisson_ratio,
             body_distance=self.body_distance,
+            contact_stiffness=colormaps.solver_contact_stiffness(
+                self.fabric.stretch_stiffness, self.fabric.poisson_ratio, self.contact_scale
+            ),
         )
 
     def _draw(self) -> None:
