@@ -10,8 +10,9 @@ import pytest
 from scipy.optimize import brentq
 
 from couture.cloth import proxy_kernels as PK
-from couture.cloth.body import SphereBody, TriangleMeshDistance, load_mannequin_mesh
+from couture.cloth.body import SphereBody, TriangleMeshDistance, load_mannequin_mesh, load_mannequin_sdf
 from couture.cloth.proxy import (
+    ComponentRegions,
     Ellipsoid,
     EllipsoidProxyBody,
     body_samples,
@@ -62,11 +63,11 @@ def bisect_along(ell: Ellipsoid, p, n, iters=80):
     return 0.5 * (lo + hi)
 
 
-def leaf_of(proxy: EllipsoidProxyBody, points):
+def leaf_of(proxy: EllipsoidProxyBody, points, regions=mannequin_regions):
     """Each point's leaf node: its region's top node, then down the stored cuts."""
     nodes = proxy.nodes
     tops = {n.region: i for i, n in enumerate(nodes) if n.parent < 0}
-    reg = mannequin_regions(points)
+    reg = regions(points)
     out = np.empty(len(points), np.int64)
     for j, (p, r) in enumerate(zip(points, reg, strict=True)):
         i = tops[r]
@@ -81,6 +82,14 @@ def leaf_of(proxy: EllipsoidProxyBody, points):
 def mannequin():
     V, F = load_mannequin_mesh()
     return V, F, TriangleMeshDistance(V, F), load_mannequin_proxy(verbose=False)
+
+
+def build_regions(name: str = "default") -> ComponentRegions:
+    """The region labels the proxy of body ``name`` was built with."""
+    grid = load_mannequin_sdf(verbose=False, name=name)
+    V, F = load_mannequin_mesh(name)
+    samples = body_samples(V, F, lambda p: grid.phi_grad(p)[0])
+    return ComponentRegions(mannequin_regions, samples.volume, samples.volume_ijk)
 
 
 # ---------------------------------------------------------------- one ellipsoid
@@ -152,7 +161,8 @@ def test_every_leaf_meets_its_threshold(mannequin):
     # the mesh vertices (what was fitted): inside their leaf, Meng's normal
     # distance (bisection along the vertex normal) within its threshold
     N = vertex_normals(V, F)
-    leaf = leaf_of(proxy, V)
+    regions = build_regions()
+    leaf = leaf_of(proxy, V, regions)
     worst = 0.0
     for i in np.unique(leaf):
         m = leaf == i
@@ -169,7 +179,7 @@ def test_every_leaf_meets_its_threshold(mannequin):
     # within the threshold (+1.5 mm) of their leaf's surface (root-find distance)
     S, _ = sample_triangles(V, F, per_triangle=0.25, seed=7)
     assert proxy.phi_grad(S)[0].max() <= 1e-3
-    leaf = leaf_of(proxy, S)
+    leaf = leaf_of(proxy, S, regions)
     for p, i in zip(S, leaf, strict=True):
         node = proxy.nodes[i]
         assert root_find_distance(node.ellipsoid.local(p[None])[0], node.ellipsoid.radii) <= node.threshold + 1.5e-3

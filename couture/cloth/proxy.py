@@ -353,6 +353,54 @@ def _cluster_stats(ell, surf, nrm, isv, sdf, n_shell):
     )
 
 
+class ComponentRegions:
+    """Region labels with each region's pieces that the body does not connect
+    made regions of their own: the volume points of a region (``regions``,
+    planar landmark cuts) are split into 6-connected components of their
+    lattice; the largest keeps the name, the others become '<name>#k' (same
+    threshold class). A landmark cut that fits one body can catch a distant
+    part of another (a graded body's hand hanging below the default
+    mannequin's arm landmark, labelled torso): fitted together with the torso,
+    its points ended in needle-thin leaves that stood 0.1 m out of the body.
+    Any point (``__call__``) takes the label of the nearest volume point of
+    its planar region."""
+
+    def __init__(self, regions: Callable[[np.ndarray], np.ndarray], vol: np.ndarray, ijk: np.ndarray):
+        from scipy import ndimage
+        from scipy.spatial import cKDTree
+
+        self.regions = regions
+        base = np.asarray(regions(vol)).astype(object)
+        rv = base.copy()
+        idx = np.asarray(ijk, np.int64)
+        idx = idx - idx.min(axis=0) + 1
+        shape = tuple(int(v) for v in idx.max(axis=0) + 2)
+        self.trees: dict[str, tuple] = {}
+        for name in sorted(set(base.tolist())):
+            iv = np.nonzero(base == name)[0]
+            grid = np.zeros(shape, bool)
+            grid[tuple(idx[iv].T)] = True
+            lab, n = ndimage.label(grid)
+            if n <= 1:
+                continue
+            comp = lab[tuple(idx[iv].T)]
+            sizes = np.bincount(comp, minlength=n + 1)
+            order = np.argsort(-sizes[1:], kind="stable") + 1  # largest first
+            names = {int(c): (name if k == 0 else f"{name}#{k}") for k, c in enumerate(order)}
+            rv[iv] = [names[int(c)] for c in comp]
+            self.trees[name] = (cKDTree(vol[iv]), rv[iv])
+        self.volume_labels = rv.astype(str)
+
+    def __call__(self, points: np.ndarray) -> np.ndarray:
+        out = np.asarray(self.regions(points)).astype(object)
+        for name, (tree, labels) in self.trees.items():
+            js = np.nonzero(out == name)[0]
+            if len(js):
+                _, near = tree.query(np.asarray(points)[js])
+                out[js] = labels[near]
+        return out.astype(str)
+
+
 def build_hierarchy(
     samples: BodySamples,
     regions: Callable[[np.ndarray], np.ndarray] | None = None,
@@ -369,7 +417,9 @@ def build_hierarchy(
     """Meng's distance-error segmentation: the nodes of the ellipsoid tree
     (region top clusters first, children after their parents).
 
-    regions(points) -> name per point (None: one region 'torso'); thresholds
+    regions(points) -> name per point (None: one region 'torso'; the pieces of a
+    region the body does not connect are regions of their own when the volume
+    points come from a lattice, ``ComponentRegions``); thresholds
     [m] per region name or class (default DEFAULT_THRESHOLDS). A cluster is
     split in two across its longest axis at the median of its volume points,
     while its error (max normal distance over its surface points, and with
@@ -387,7 +437,11 @@ def build_hierarchy(
         rv = np.full(len(vol), "torso")
         rs = np.full(len(surf), "torso")
     else:
-        rv, rs = np.asarray(regions(vol)), np.asarray(regions(surf))
+        if samples.volume_ijk is not None and len(vol):
+            labels = ComponentRegions(regions, vol, samples.volume_ijk)
+            rv, rs = labels.volume_labels, labels(surf)
+        else:
+            rv, rs = np.asarray(regions(vol)), np.asarray(regions(surf))
     t0 = time.perf_counter()
     nodes: list[ProxyNode] = []
     stack = []
@@ -760,7 +814,7 @@ def build_mannequin_proxy(
     return EllipsoidProxyBody(nodes)
 
 
-PROXY_VERSION = 4
+PROXY_VERSION = 5
 _LOADED: dict[str, EllipsoidProxyBody] = {}
 """proxies loaded in this process, by cache file (a solver asks once per solve)"""
 
