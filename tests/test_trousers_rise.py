@@ -10,6 +10,7 @@ import pytest
 
 from couture.pattern import mannequin as M
 from couture.pattern.body_measures import body_options, crotch_length
+from couture.pattern.slopers import CROTCH_EASE
 from couture.pattern.validate import validate
 from schemas.design import Body, Design, Sloper
 
@@ -35,7 +36,7 @@ def test_centre_seam_is_the_crotch_length_plus_ease(body):
     front = _polyline_length(_segment(panels["front_left"], "center"))
     back = _polyline_length(_segment(panels["back_left"], "center"))
     # waist to waist: the band's lower half at front and back, then the two centre seams
-    assert band + front + back == pytest.approx(cl + 0.08, abs=2e-3)
+    assert band + front + back == pytest.approx(cl + CROTCH_EASE, abs=2e-3)
 
 
 def test_crotch_length_of_the_bodies():

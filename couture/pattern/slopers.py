@@ -772,10 +772,13 @@ def draft_shirt_set_in(p: dict[str, float]) -> SloperDraft:
 
 # ---------------------------------------------------------------- trousers
 
-CROTCH_EASE = 0.08
+CROTCH_EASE = 0.10
 """[m] default crotch ease of the trousers (``draft_trousers``): the cloth keeps
 the 1 cm contact offset off the body, which adds about pi x 1 cm = 3 cm round the
-half turn from front waist to back waist, plus 5 cm of wearing ease"""
+half turn from front waist to back waist, plus 7 cm of wearing ease (a pull-on
+trouser's relaxed rise). With 8 cm the top settled up to 1.5 cm down on some
+meshes of L and XS (600-800 vertices); with 10 cm at most 0.8 cm on every
+shipped body at 400-1600 vertices"""
 BAND_HEIGHT = 0.035
 """[m] default height of the trousers' waistband piece (``draft_trousers``)"""
 
@@ -867,9 +870,12 @@ def draft_trousers(p: dict[str, float]) -> SloperDraft:
     (by 1.4 N with no ease on the default body, more than the trousers' 1.3 N
     weight; with a fixed 6 cm added to the crotch depth the centre seam was
     4.4 cm longer than the default body's crotch length but 0.8 cm on XL, whose
-    band slid 2.4 cm). With no elastic (``waistband`` 1) the default 20 N/m
-    fabric cannot carry the trousers' weight at the waist and they slide down
-    toward the hip."""
+    band slid 2.4 cm). The elastic (0.75 of the waist) holds the band against
+    what pull remains on a waist whose girth grows by less than 1 cm in the
+    2-3 cm below it on every graded body: at 0.8 with the rise from the crotch length XL still slid
+    1.4 cm. With no elastic (``waistband`` 1) the default 20 N/m fabric cannot
+    carry the trousers' weight at the waist and they slide down toward the
+    hip."""
     bh = p["band_height"]
     # the band covers the waist +- bh/2: the legs' panels start bh/2 below it
     h, L = p["waist_to_hip"] - bh / 2, p["length"] - bh / 2
