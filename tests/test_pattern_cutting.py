@@ -116,9 +116,7 @@ def test_allowance_widths_read_back(tmp_path, path):
         assert np.abs(sew - panel.outline).max() < 1e-4  # the drafted sew line, 0.1 mm
         assert self_intersections(cut) == []
         assert point_in_polygon(panel.outline, cut).all()
-        # corners: segment ends and boundary dart mouths
         outline_segs = [s for s in panel.segments if s.hole < 0]
-        corners = np.array([panel.outline[i] for s in outline_segs for i in (s.start, s.stop)])
         # boundary dart legs: bridged by the cut line, so not measured
         legs = [segment_points(panel, s) for s in outline_segs if s.name.startswith("dart:")]
         dart_legs = np.vstack(legs) if legs else np.zeros((0, 2))
@@ -129,7 +127,10 @@ def test_allowance_widths_read_back(tmp_path, path):
             P = segment_points(panel, s)
             mid = 0.5 * (P[1:] + P[:-1])
             w = want[(panel.name, s.name)]
-            far = np.linalg.norm(mid[:, None] - corners[None], axis=-1).min(1) > 2 * w + 0.005
+            # away from the segment's own ends, where its offset meets its neighbours' (a corner
+            # across the panel, such as the trousers' band's waist split 3.5 cm below its hem, does not end it)
+            ends = np.array([panel.outline[s.start], panel.outline[s.stop]])
+            far = np.linalg.norm(mid[:, None] - ends[None], axis=-1).min(1) > 2 * w + 0.005
             far &= _dist_to_polyline(mid, dart_legs, closed=False) > 1e-9 if len(dart_legs) else True
             if not far.any():
                 continue

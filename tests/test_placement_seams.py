@@ -20,7 +20,7 @@ from couture.bench.drape_slopers import coarse_mesh, seam_gaps
 # tops of front and back over the shoulder, which no wrap around a vertical
 # axis can bring together (about 10 cm), and the shirt's sleeve caps are sewn
 # to armholes on the torso ring (about 12 cm). The trousers' elastic waistband
-# (cut to 80 % of the waist, ``waistband``) cannot reach round the body at the
+# (cut to 75 % of the waist, ``waistband``) cannot reach round the body at the
 # waist: each leg's half ring leaves the shortfall open at its centre seams
 # (about 16 cm at the top, closed by the drape). The set-in shirt's collar
 # starts round the neck above its neckline (about 4-5 cm: the neckline lies on

@@ -7,7 +7,8 @@ constants, :mod:`couture.pattern.mannequin`). For a graded body
 bench and ``couture bodies list`` read, ``bodies.table()``'s ``measured``
 (ISO 8559-1 girths and landmark heights), plus two girths that table does not
 hold, measured here from the body's mesh the way the mannequin's constants
-were (:mod:`couture.pattern.mannequin`): the neck girth (the smallest girth of
+were (:mod:`couture.pattern.mannequin`): the total crotch length
+(:func:`crotch_length`), the neck girth (the smallest girth of
 the largest loop straddling x = 0 at heights 0.57-0.63 m; the default's reads
 0.314 m here, 0.326 m at y = 0.60 in the mannequin's constants) and the upper arm girth (the arm's horizontal section
 just below the underarm, the default's at y = 0.44).
@@ -37,6 +38,29 @@ def _hull_perimeter(Q: np.ndarray) -> float:
 
     v = Q[ConvexHull(Q).vertices]
     return float(np.linalg.norm(v - np.roll(v, 1, axis=0), axis=1).sum())
+
+
+def crotch_length(name: str) -> float:
+    """Total crotch length [m] of body ``name`` (ISO 8559-1: from the centre
+    front waist between the legs to the centre back waist): the length of the
+    body's sagittal section (plane x = 0) below the waist height, front waist
+    round belly, crotch and seat to back waist. The section's points below the
+    waist are ordered by their angle about a point inside the pelvis (10 cm
+    above the crotch, mid depth: the outline is star-shaped about it there)."""
+    from couture import bodies
+    from couture.bodies.measure import Slicer
+
+    m = bodies.measured(name)
+    s = Slicer(*bodies.load_mesh(name))
+    loops = [P for _, P in s.loops(0.0, axis=0) if P[:, 1].min() < m["crotch_y"] + 0.01 < m["waist_y"] < P[:, 1].max()]
+    if not loops:
+        raise ValueError(f"body {name!r}: no sagittal section through the crotch and the waist")
+    Q = max(loops, key=len)[:, [2, 1]]  # (z, y)
+    Q = Q[Q[:, 1] <= m["waist_y"]]
+    c = np.array([0.5 * (Q[:, 0].min() + Q[:, 0].max()), m["crotch_y"] + 0.10])
+    Q = Q[np.argsort(np.arctan2(Q[:, 1] - c[1], Q[:, 0] - c[0]))]
+    d = np.linalg.norm(np.diff(np.vstack([Q, Q[:1]]), axis=0), axis=1)
+    return float(d.sum() - d.max())  # the longest step closes the loop across the waist
 
 
 def mesh_girths(name: str, underarm_y: float) -> dict[str, float]:
@@ -79,6 +103,7 @@ def body_options(name: str) -> dict[str, float]:
         "waist_height": m["waist_y"] - m["floor_y"],
         "waist_to_hip": m["waist_y"] - m["hip_y"],
         "crotch_depth": m["waist_y"] - m["crotch_y"],
+        "crotch_length": crotch_length(name),
         "waist_to_underarm": m["underarm_y"] - m["waist_y"] - 0.03,
         "waist_to_shoulder": M.SHOULDER_Y - m["waist_y"],
     }

@@ -37,6 +37,9 @@ NECK_GIRTH = 0.326
 """[m] at y = 0.60"""
 CROTCH_Y = -0.05
 """[m] lowest section with one loop over both legs"""
+CROTCH_LENGTH = 0.725
+"""[m] total crotch length: the sagittal section (x = 0) from the front waist
+between the legs to the back waist (``couture.pattern.body_measures.crotch_length``)"""
 KNEE_Y = -0.42
 ANKLE_Y = -0.69
 FLOOR_Y = -0.817

@@ -49,6 +49,9 @@ NECK_GIRTH = _body("neck_girth", M.NECK_GIRTH, 0.28, 0.50, "neck base circumfere
 THIGH = _body("thigh_girth", M.THIGH_GIRTH, 0.40, 0.90, "one thigh, just below the crotch")
 ANKLE = _body("ankle_girth", M.ANKLE_GIRTH, 0.17, 0.35, "one ankle")
 CROTCH_DEPTH = _body("crotch_depth", M.WAIST_Y - M.CROTCH_Y, 0.20, 0.40, "waist to crotch, seated depth")
+CROTCH_LENGTH = _body(
+    "crotch_length", M.CROTCH_LENGTH, 0.45, 1.10, "front waist between the legs to back waist, along the body"
+)
 WAIST_HEIGHT = _body(
     "waist_height", M.WAIST_Y - M.FLOOR_Y, 0.80, 1.30, "waist line above the floor (places the garment on the body)"
 )

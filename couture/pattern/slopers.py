@@ -772,8 +772,13 @@ def draft_shirt_set_in(p: dict[str, float]) -> SloperDraft:
 
 # ---------------------------------------------------------------- trousers
 
-RISE_EASE = 0.06
-"""[m] default rise ease of the trousers (``draft_trousers``)"""
+CROTCH_EASE = 0.10
+"""[m] default crotch ease of the trousers (``draft_trousers``): the cloth keeps
+the 1 cm contact offset off the body, which adds about pi x 1 cm = 3 cm round the
+half turn from front waist to back waist, plus 7 cm of wearing ease (a pull-on
+trouser's relaxed rise). With 8 cm the top settled up to 1.5 cm down on some
+meshes of L and XS (600-800 vertices); with 10 cm at most 0.8 cm on every
+shipped body at 400-1600 vertices"""
 BAND_HEIGHT = 0.035
 """[m] default height of the trousers' waistband piece (``draft_trousers``)"""
 
@@ -782,13 +787,14 @@ TROUSERS_OPTIONS = (
     O.HIP,
     O.WAIST_TO_HIP,
     O.CROTCH_DEPTH,
+    O.CROTCH_LENGTH,
     O.THIGH,
     O.ANKLE,
     opt("length", 0.95, 0.40, 1.10, "m", "waist to hem along the side seam"),
     opt("waist_ease", 0.02, 0.0, 0.10, "m", "added to the waist girth"),
     opt(
         "waistband",
-        0.80,
+        0.75,
         0.60,
         1.00,
         "1",
@@ -804,16 +810,41 @@ TROUSERS_OPTIONS = (
     ),
     opt("hip_ease", 0.05, 0.0, 0.15, "m", "added to the hip girth"),
     opt(
-        "rise_ease",
-        RISE_EASE,
+        "crotch_ease",
+        CROTCH_EASE,
         0.0,
-        0.10,
+        0.20,
         "m",
-        "added to the crotch depth: the crotch point hangs this far below the body's crotch",
+        "added to the crotch length: the centre seam, front waist between the legs to back waist, is this much longer",
     ),
     opt("hem_ease", 0.10, 0.0, 0.40, "m", "added to the ankle girth at the hem"),
     opt("crotch_extension", 0.05, 0.02, 0.10, "m", "how far the crotch point reaches past the centre line"),
 )
+
+
+def _centre_seam(cd: float, ext: float) -> Curve:
+    """A leg panel's centre seam, from the centre waist (0, 0) down round belly
+    or seat to the crotch point (-ext, -cd)."""
+    return bezier(
+        np.array([0.0, 0.0]),
+        np.array([0.0, -0.5 * cd]),
+        np.array([-0.6 * ext, -0.75 * cd]),
+        np.array([-ext, -cd]),
+    )
+
+
+def _rise(length: float, ext: float) -> float:
+    """The drafted rise cd [m] whose centre seam (``_centre_seam``) is ``length``
+    long (its length grows monotonically with cd; bisection to 0.1 mm)."""
+    if length <= ext:
+        raise ValueError(
+            f"trousers: centre seam length {length:.3f} m is not longer than the crotch extension {ext:.3f} m"
+        )
+    lo, hi = 0.0, length
+    while hi - lo > 1e-4:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _centre_seam(mid, ext).length() < length else (lo, mid)
+    return 0.5 * (lo + hi)
 
 
 def draft_trousers(p: dict[str, float]) -> SloperDraft:
@@ -830,19 +861,29 @@ def draft_trousers(p: dict[str, float]) -> SloperDraft:
     the sides) wrapped round the torso, so it is placed snug on the body at the
     natural waist; the leg panels' waist edges, cut to the same length, are
     sewn to its lower edge, and their sides run from there to the hip width,
-    so the grip fades toward the hip. The crotch point hangs ``rise_ease``
-    below the body's crotch: the centre seam runs round the belly and seat, so
-    a crotch drafted at the body's crotch depth is too short, bears up into the
-    crotch and pulls the waist down (by 1.4 N at ``rise_ease`` 0, more than the
-    trousers' 1.3 N weight). With no elastic (``waistband`` 1) the default 20 N/m fabric cannot carry the trousers'
-    weight at the waist and they slide down toward the hip."""
+    so the grip fades toward the hip. The rise is drafted from the body's
+    crotch length (front waist between the legs to back waist, along the body)
+    + ``crotch_ease``: the band's height below the waist plus the front and
+    back panels' centre seams make up that length. A rise drafted from the
+    vertical crotch depth is too short, the more so the rounder the belly and
+    seat: the crotch bears up into the body's crotch and pulls the waist down
+    (by 1.4 N with no ease on the default body, more than the trousers' 1.3 N
+    weight; with a fixed 6 cm added to the crotch depth the centre seam was
+    4.4 cm longer than the default body's crotch length but 0.8 cm on XL, whose
+    band slid 2.4 cm). The elastic (0.75 of the waist) holds the band against
+    what pull remains on a waist whose girth grows by less than 1 cm in the
+    2-3 cm below it on every graded body: at 0.8 with the rise from the crotch length XL still slid
+    1.4 cm. With no elastic (``waistband`` 1) the default 20 N/m fabric cannot
+    carry the trousers' weight at the waist and they slide down toward the
+    hip."""
     bh = p["band_height"]
     # the band covers the waist +- bh/2: the legs' panels start bh/2 below it
     h, L = p["waist_to_hip"] - bh / 2, p["length"] - bh / 2
-    cd = p["crotch_depth"] + p["rise_ease"] - bh / 2  # the drafted rise
+    ext = p["crotch_extension"]
+    # the drafted rise: band (bh / 2 below the waist) + front and back centre seams = crotch length + ease
+    cd = _rise((p["crotch_length"] + p["crotch_ease"] - bh) / 2, ext)
     ww = p["waistband"] * (p["waist_girth"] + p["waist_ease"]) / 4
     wh = (p["hip_girth"] + p["hip_ease"]) / 4
-    ext = p["crotch_extension"]
     hem_w = (p["ankle_girth"] + p["hem_ease"]) / 2
     thigh_w = (p["thigh_girth"] + 0.06) / 2
     hh = min(h, 0.9 * (p["crotch_depth"] - bh / 2))  # the hip line stays above the body's crotch
@@ -867,7 +908,7 @@ def draft_trousers(p: dict[str, float]) -> SloperDraft:
             ],
         ),
         SegDef("waist", [line(Ws, Wc)]),
-        SegDef("center", [bezier(Wc, Wc + np.array([0.0, -0.5 * cd]), Cr + np.array([0.4 * ext, 0.25 * cd]), Cr)]),
+        SegDef("center", [_centre_seam(cd, ext)]),
         SegDef(
             "inseam",
             [

@@ -52,6 +52,7 @@ BODY_OPTION_SUFFIXES = (
     "waist_to_shoulder",
     "shoulder_width",
     "crotch_depth",
+    "crotch_length",
 )
 
 
