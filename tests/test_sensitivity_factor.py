@@ -125,9 +125,10 @@ def test_sphere_drape_columns_match_finite_differences(strip):
 
 
 def test_press_rhs_is_the_models_derivative_and_matches_rebuilt_models(strip):
-    """The right-hand side of every press is the model's own ∂F/∂X·dX (one
-    implementation of the bending weights, matrix-free), checked here against
-    models rebuilt at X ± h dX, the bending part alone not trivially zero."""
+    """The factor's matrix-free right-hand side is the model's own ∂F/∂X·dX
+    (presses use ∂F/∂X assembled at refactorization, equal to it:
+    test_sensitivity_press), checked here against models rebuilt at X ± h dX,
+    the bending part alone not trivially zero."""
     m, x = strip
     f = SensitivityFactor(m, x, bend_floor=False)
     rng = np.random.default_rng(5)

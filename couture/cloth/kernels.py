@@ -354,24 +354,75 @@ def bending_weights(X, st, Kw, fac):
             Kw[e, a] = w[a]
 
 
+@njit(cache=True, inline="always")
+def bending_stencil_weights_dir(X, st, e, d0x, d0y, d1x, d1y, d2x, d2y, d3x, d3y, w, dw):
+    """w (4,) = K of stencil e at rest positions X and dw (4,) its exact
+    derivative along the motion (d0x, d0y), ..., (d3x, d3y) of the stencil's
+    four vertices (forward mode of ``_bending_stencil_weights``); returns
+    (fac, dfac), fac = 3 / (A0 + A1) [1/m²] and its derivative."""
+    i0, i1, i2, i3 = st[e, 0], st[e, 1], st[e, 2], st[e, 3]
+    p0x, p0y = X[i0, 0], X[i0, 1]
+    ex, ey = X[i1, 0] - p0x, X[i1, 1] - p0y
+    ax, ay = X[i2, 0] - p0x, X[i2, 1] - p0y
+    bx, by = X[i3, 0] - p0x, X[i3, 1] - p0y
+    dex, dey = d1x - d0x, d1y - d0y
+    dax, day = d2x - d0x, d2y - d0y
+    dbx, dby = d3x - d0x, d3y - d0y
+    le2 = ex * ex + ey * ey
+    le = np.sqrt(le2)
+    tx, ty = ex / le, ey / le
+    c0 = ex * ay - ey * ax
+    c1 = ex * by - ey * bx
+    A0 = 0.5 * abs(c0)
+    A1 = 0.5 * abs(c1)
+    k2 = le2 / (2.0 * A0)
+    k3 = le2 / (2.0 * A1)
+    s2 = ax * tx + ay * ty
+    s3 = bx * tx + by * ty
+    k1 = -(k2 * s2 + k3 * s3) / le
+    w[0] = -(k1 + k2 + k3)
+    w[1] = k1
+    w[2] = k2
+    w[3] = k3
+    fac = 3.0 / (A0 + A1)
+    dle2 = 2.0 * (ex * dex + ey * dey)
+    dle = dle2 / (2.0 * le)
+    dtx = (dex * le - ex * dle) / le2
+    dty = (dey * le - ey * dle) / le2
+    dA0 = 0.5 * (1.0 if c0 >= 0.0 else -1.0) * (dex * ay + ex * day - dey * ax - ey * dax)
+    dA1 = 0.5 * (1.0 if c1 >= 0.0 else -1.0) * (dex * by + ex * dby - dey * bx - ey * dbx)
+    dk2 = dle2 / (2.0 * A0) - k2 * dA0 / A0
+    dk3 = dle2 / (2.0 * A1) - k3 * dA1 / A1
+    ds2 = dax * tx + ax * dtx + day * ty + ay * dty
+    ds3 = dbx * tx + bx * dtx + dby * ty + by * dty
+    dk1 = -(dk2 * s2 + k2 * ds2 + dk3 * s3 + k3 * ds3) / le - k1 * dle / le
+    dw[0] = -(dk1 + dk2 + dk3)
+    dw[1] = dk1
+    dw[2] = dk2
+    dw[3] = dk3
+    return fac, -fac * (dA0 + dA1) / (A0 + A1)
+
+
 @njit(cache=True)
-def bending_dforces_dX(x, X, dX, st, coef0, h, df):
+def bending_dforces_dX(x, X, dX, st, coef0, df):
     """df (n, 3) += d/de f_bending(x; X + e dX) at e = 0, without assembling a
     matrix: f_bending = -Σ_e c fac_e K_e (K_e·x) with c = coef0 = k_b · BEND_CONSTANT,
-    each stencil's K and fac differenced centrally with step h (``ClothModel.bend_step``)."""
-    wp = np.empty(4)
-    wm = np.empty(4)
+    each stencil's K and fac differentiated exactly (``bending_stencil_weights_dir``)."""
+    w = np.empty(4)
+    dw = np.empty(4)
     for e in range(st.shape[0]):
-        fp = _bending_stencil_weights(X, st, e, dX, h, wp)
-        fm = _bending_stencil_weights(X, st, e, dX, -h, wm)
+        i0, i1, i2, i3 = st[e, 0], st[e, 1], st[e, 2], st[e, 3]
+        fac, dfac = bending_stencil_weights_dir(
+            X, st, e, dX[i0, 0], dX[i0, 1], dX[i1, 0], dX[i1, 1], dX[i2, 0], dX[i2, 1], dX[i3, 0], dX[i3, 1], w, dw
+        )
         for c in range(3):
-            sp = 0.0
-            sm = 0.0
+            s = 0.0
+            ds = 0.0
             for a in range(4):
-                sp += wp[a] * x[st[e, a], c]
-                sm += wm[a] * x[st[e, a], c]
+                s += w[a] * x[st[e, a], c]
+                ds += dw[a] * x[st[e, a], c]
             for a in range(4):
-                df[st[e, a], c] -= coef0 * (fp * wp[a] * sp - fm * wm[a] * sm) / (2.0 * h)
+                df[st[e, a], c] -= coef0 * (dfac * w[a] * s + fac * (dw[a] * s + w[a] * ds))
 
 
 @njit(cache=True)

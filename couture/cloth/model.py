@@ -737,21 +737,11 @@ class ClothModel:
             "released": int(released.sum()),
         }
 
-    def bend_step(self, dX: np.ndarray) -> float:
-        """Central-difference step h for the bending part of dforces_dX:
-        1e-4 of the mean edge length per unit max|dX|. K and 3/(A0+A1) are
-        smooth rational functions of X, so the error is O((h|dX|/l)²) ~ 1e-8
-        relative on quality meshes while round-off stays ~ eps/1e-4 ~ 1e-12."""
-        e = self.X[self.tris[:, 1]] - self.X[self.tris[:, 0]]
-        lmean = float(np.mean(np.linalg.norm(e, axis=1)))
-        dmax = float(np.max(np.abs(dX))) if dX.size else 0.0
-        return 1e-4 * lmean / dmax if dmax > 0 else 0.0
-
     def dforces_dX(self, x: np.ndarray, dX: np.ndarray, terms=None) -> np.ndarray:
         """d forces(x; X + e dX)/de at e = 0, shape (n, 3) [N per unit e].
 
-        Membrane and gravity analytic; bending by a central difference of
-        each stencil's weights at X ± h dX (step: ``bend_step``), matrix-free.
+        Membrane and gravity analytic; bending by the exact derivative of
+        each stencil's weights (forward mode), matrix-free.
         Seams, contact and friction do not depend on X."""
         terms = self._check_terms(terms)
         x = np.ascontiguousarray(x, dtype=np.float64)
@@ -770,7 +760,5 @@ class ClothModel:
             np.add.at(dm, self.tris.reshape(-1), np.repeat(dA * self.area_density / 3.0, 3))
             df[:, 1] -= GRAVITY * dm
         if "bending" in terms and len(self.bend_stencils):
-            h = self.bend_step(dX)
-            if h > 0:
-                K.bending_dforces_dX(x, self.X, dX, self.bend_stencils, self.bend_stiffness * BEND_CONSTANT, h, df)
+            K.bending_dforces_dX(x, self.X, dX, self.bend_stencils, self.bend_stiffness * BEND_CONSTANT, df)
         return df

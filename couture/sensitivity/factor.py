@@ -54,6 +54,7 @@ import scipy.sparse.linalg as spla
 from couture.cloth.model import ClothModel
 
 from .bending import length_scale, model_bending, model_lame
+from .dfdx import DForcesDX
 
 if TYPE_CHECKING:  # the type checker sees the solvers' names; at run time they may be missing
     from couture.solvers.linalg import FactorizationError
@@ -174,6 +175,8 @@ class FactorInfo:
     """True when the unprojected membrane Hessian was factored (exact linearisation)"""
     attempts: list = field(default_factory=list)
     """(exact Hessian, bending added, shift, lambda_min_rel or 'failed') per factorization"""
+    dfdx_s: float = 0.0
+    """wall time of assembling ∂F/∂X for the presses (``press_matrix``; 0 without) [s]"""
     regularization_effect: float = 0.0
     """relative residual ||K s - b|| / ||b|| of the latest columns s in the
     unregularized system (the regularization's cost to the prediction; 0
@@ -277,6 +280,15 @@ class SensitivityFactor:
     ``param_column(dX)`` give design sensitivities. Build it in idle time
     (a worker thread): it costs one stiffness assembly, one sparse
     factorization and a handful of back-substitutions (``info.refactor_s``).
+
+    With ``press_matrix`` (default) it also assembles ∂F/∂X at x_eq
+    (:class:`~couture.sensitivity.dfdx.DForcesDX`, ``info.dfdx_s``), so a
+    press's right-hand side is one sparse product instead of a matrix-free
+    evaluation of every term; the columns of one Ψ are kept (the last
+    ``keep_columns`` Ψs), so a second press with the same Ψ on this
+    factorization costs a copy. Without it, presses use ``model.dforces_dX``
+    (a factor made for one set of columns, e.g. a GMLS sample, saves the
+    assembly that way).
     """
 
     def __init__(
@@ -293,6 +305,8 @@ class SensitivityFactor:
         check: bool = True,
         backend: str = "auto",
         seed: int = 0,
+        press_matrix: bool = True,
+        keep_columns: int = 8,
     ):
         t0 = time.perf_counter()
         self.model = model
@@ -401,6 +415,13 @@ class SensitivityFactor:
             A0 = base(exact_hessian)
             self._A_exact = A0[self.keep][:, self.keep].tocsr() if info.null_modes else A0
             info.regularization_effect = float("nan")
+        self.dfdx: DForcesDX | None = None
+        if press_matrix:
+            self.dfdx = DForcesDX(model, self.x_eq, self.dofs)
+            info.dfdx_s = self.dfdx.assemble_s
+        self._keep = keep_columns
+        self._columns: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        """hash of Ψ -> (Ψ, its columns), the last ``keep_columns``"""
         info.refactor_s = time.perf_counter() - t0
         self.info = info
 
@@ -462,24 +483,50 @@ class SensitivityFactor:
         equilibrium as the chord: one back-substitution)."""
         return self.solve(forces)
 
+    def rhs_free(self, dX: np.ndarray) -> np.ndarray:
+        """∂F/∂X · dX on the free DOFs: (n_dofs,) for dX (n, 2), (n_dofs, k) for
+        (n, 2, k); one sparse product with ``press_matrix``, else ``model.dforces_dX``
+        per column."""
+        dX = np.asarray(dX, dtype=np.float64)
+        if self.dfdx is not None:
+            return self.dfdx.apply(dX)
+        if dX.ndim == 2:
+            return self.dforces_dX(dX).reshape(-1)[self.dofs]
+        rhs = np.stack([self.dforces_dX(dX[:, :, j]) for j in range(dX.shape[2])], axis=2)
+        return rhs.reshape(3 * self.n, -1)[self.dofs]
+
     def columns(self, psi: np.ndarray) -> np.ndarray:
         """Response columns S (n, 3, 2) for a pointer Jacobian psi (n, 2, 2):
-        S[:, :, j] = ∂x/∂d_j = K⁻¹ ∂F/∂X · psi[:, :, j]."""
+        S[:, :, j] = ∂x/∂d_j = K⁻¹ ∂F/∂X · psi[:, :, j]. The columns of the
+        last ``keep_columns`` Ψs are kept: the same Ψ again returns a copy."""
         psi = np.asarray(psi, dtype=np.float64)
+        key = hash((psi.shape, psi.tobytes()))
+        hit = self._columns.get(key)
+        if hit is not None and np.array_equal(hit[0], psi):
+            return hit[1].copy()
         k = psi.shape[2]
         live = [j for j in range(k) if np.any(psi[:, :, j])]  # a parameter edit has one zero column
         S = np.zeros((self.n, 3, k))
         if live:
-            rhs = np.stack([self.dforces_dX(psi[:, :, j]) for j in live], axis=2)
-            S[:, :, live] = self.solve(rhs)
-            self._measure_effect(
-                rhs.reshape(3 * self.n, -1)[self.dofs], S[:, :, live].reshape(3 * self.n, -1)[self.dofs]
-            )
+            b = self.rhs_free(psi[:, :, live])
+            y = self.solve_free(b)
+            S.reshape(3 * self.n, k)[np.ix_(self.dofs, np.array(live))] = y
+            self._measure_effect(b, y)
+        if self._keep > 0:
+            if len(self._columns) >= self._keep:
+                self._columns.pop(next(iter(self._columns)))
+            self._columns[key] = (psi.copy(), S.copy())
         return S
+
+    def clear_columns(self) -> None:
+        """Forget the kept columns (the next press computes them; for benchmarks)."""
+        self._columns.clear()
 
     def param_column(self, dX_dg: np.ndarray) -> np.ndarray:
         """Sensitivity s_g (n, 3) = ∂x/∂g for a sloper parameter with rest motion dX/dg (n, 2)."""
-        rhs = self.dforces_dX(np.asarray(dX_dg, dtype=np.float64))
-        s = self.solve(rhs)
-        self._measure_effect(rhs.reshape(-1)[self.dofs], s.reshape(-1)[self.dofs])
-        return s
+        b = self.rhs_free(np.asarray(dX_dg, dtype=np.float64).reshape(self.n, 2))
+        y = self.solve_free(b)
+        s = np.zeros(3 * self.n)
+        s[self.dofs] = y
+        self._measure_effect(b, y)
+        return s.reshape(self.n, 3)

@@ -302,7 +302,9 @@ class Predictor:
             model_m = self.model_at(self._equilibrium()[0], self.rest_at(d_m))
             if self.friction:
                 hold_friction(model_m, x_m)
-            f = SensitivityFactor(model_m, x_m, bend_floor=self.bend_floor, **self.factor_kwargs)
+            # one set of columns here: matrix-free ∂F/∂X is cheaper than assembling it
+            kw = {"press_matrix": False, "keep_columns": 0, **self.factor_kwargs}
+            f = SensitivityFactor(model_m, x_m, bend_floor=self.bend_floor, **kw)
             S = f.columns(self._pressed())
             info = f.info
         with self._lock:
