@@ -463,10 +463,31 @@ def build_hierarchy(
             nb = lattice[tuple((ijk[iv][:, None, :] + steps[None]).reshape(-1, 3).T)]
             return np.unique(nb[nb >= 0])
 
-    def make(iv, isf):
-        P = np.vstack([vol[iv if grow is None else grow(iv)], surf[isf]])
+    def make(iv, isf, grown=True):
+        P = np.vstack([vol[iv if grow is None or not grown else grow(iv)], surf[isf]])
         ell = fit_ellipsoid(P, method)
         return ell, _cluster_stats(ell, surf[isf], nrm[isf], isv[isf], over_sdf, n_shell)
+
+    def tight(node, iv, isf):
+        """A cluster too small to split: fitted to its own points, without the
+        grown volume (a handful of points in a crease, where the cell of
+        growth bulges across the crease and out of the body), if that meets
+        the threshold; else it stays unmet."""
+        if grow is None:
+            node.met = False
+            return
+        try:
+            ell, st = make(iv, isf, grown=False)
+        except (ValueError, np.linalg.LinAlgError):
+            node.met = False
+            return
+        trial = ProxyNode(ellipsoid=ell, region=node.region, threshold=node.threshold, depth=0, parent=-1, **st)
+        if trial.error <= node.threshold:
+            node.ellipsoid = ell
+            for k, v in st.items():
+                setattr(node, k, v)
+        else:
+            node.met = False
 
     while stack:
         iv, isf, name, thr, depth, parent = stack.pop()
@@ -479,7 +500,7 @@ def build_hierarchy(
         if node.error <= thr:
             continue
         if len(iv) + len(isf) < min_points or depth >= max_depth:
-            node.met = False
+            tight(node, iv, isf)
             continue
         # the split: across the longest axis at the median of the volume points
         # along it (mass halves; chunks stay compact, so the bulge of their
@@ -496,7 +517,7 @@ def build_hierarchy(
         cut = 0.5 * (allq[j - 1] + allq[j]) if j > 0 else float(mid)
         halves = [(iv[pv < cut], isf[ps < cut]), (iv[pv >= cut], isf[ps >= cut])]
         if any(len(a) + len(b) < 2 for a, b in halves):
-            node.met = False
+            tight(node, iv, isf)
             continue
         node.cut = (u.copy(), cut)
         for a, b in reversed(halves):  # first half popped (and numbered) first
@@ -814,7 +835,7 @@ def build_mannequin_proxy(
     return EllipsoidProxyBody(nodes)
 
 
-PROXY_VERSION = 5
+PROXY_VERSION = 6
 _LOADED: dict[str, EllipsoidProxyBody] = {}
 """proxies loaded in this process, by cache file (a solver asks once per solve)"""
 
