@@ -617,7 +617,7 @@ def test_adjust_folder_drag_release_sends_a_request_and_shows_progress(ui):
     shorter; a drag down is refused (nothing sent, the folder says why);
     progress and failures show in the folder; undo puts the design back."""
     from nodes.ui.main import adjust_msg
-    from schemas.messages import AdjustMsg, SchemaError, decode, encode
+    from schemas.messages import AdjustMsg, decode, encode
 
     sent: list[tuple[str, float]] = []
     designs: list = []
