@@ -67,12 +67,12 @@ def make_target(
 
 def _check_tightening(design: Design, target: Target, x_src: np.ndarray, mesh: GarmentMesh) -> None:
     """Refuse a tightening the body does not leave room for (:func:`waist_room`)."""
+    from couture.cloth.body import load_mannequin_sdf
     from couture.solvers.service import scene_from_design
 
     scene = scene_from_design(design)
-    from couture.cloth.body import load_mannequin_sdf
-
-    body = load_mannequin_sdf(verbose=False, name="default" if scene.body == "mannequin" else scene.body)
+    name = design.body.name  # as scene_from_design names it: 'default' is the mannequin
+    body = load_mannequin_sdf(verbose=False, name=name)
     y0 = target.info["y_loop"]
     room = waist_room(x_src, mesh.tris, y0, body, scene.contact_offset)
     if -target.amount > room + 0.25 * -target.amount:

@@ -181,17 +181,23 @@ def fit_design(
         start = projection.loop_m[0]
         t1, slope0, cap = projection.loop_m[1] - start, 1.0, (-CLOTH_CAP * abs(amount), CLOTH_CAP * abs(amount))
 
-        def refit(t: float) -> Projection:
+        def refit_cloth(t: float) -> Projection:
             return project_to_design(
                 design, case.mesh, case.X_out, vertices=vertices, weights=weights, loop=loop, loop_length=start + t
             )
+
+        refit: Callable[[float], Projection] = refit_cloth
 
         what = "cm of cloth along the loop"
     else:
         t1, slope0, cap = 1.0, 1.0 / achieved if achieved * amount > 0 else 1.0 / amount, (0.0, MAX_SCALE)
 
-        def refit(t: float, fit: Projection = projection) -> Projection:
-            return scaled(fit, t)
+        first = projection
+
+        def refit_scale(t: float) -> Projection:
+            return scaled(first, t)
+
+        refit = refit_scale
 
         what = "times the fitted option change"
     calibration = [(t1, achieved)]

@@ -99,10 +99,7 @@ def _hem_extension(
     rows = max(2, int(np.ceil(length / row)))
     at = np.full(len(x), -1, np.int64)
     at[v] = np.arange(len(v))
-    V = [x]
-    for r in range(1, rows + 1):
-        V.append(x[v] + (r * length / rows) * dv)
-    V = np.concatenate(V)
+    V = np.concatenate([x] + [x[v] + (r * length / rows) * dv for r in range(1, rows + 1)])
     idx = lambda r, i: i if r == 0 else len(x) + (r - 1) * len(v) + at[i]  # noqa: E731
     F = [tris]
     for r in range(rows):
@@ -373,7 +370,10 @@ def material_loop(x: np.ndarray, tris: np.ndarray, y0: float, *, min_span: float
     if not cut.any():
         raise ValueError(f"the garment does not reach height y = {y0:.3f} m: no loop there")
     key: dict[tuple[int, int], int] = {}
-    i0, i1, t, seg = [], [], [], []
+    i0: list[int] = []
+    i1: list[int] = []
+    t: list[float] = []
+    seg: list[list[int]] = []
     for tri in tris[cut]:
         ends = []
         for a, b in ((tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])):
