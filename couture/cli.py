@@ -204,8 +204,8 @@ def _parser() -> argparse.ArgumentParser:
     ad = sub.add_parser(
         "adjust",
         help="direct 3D edit of a draped design (hem, waist) and its physics-adjusted pattern (Bartle 2016)",
-        description="Drape a design on solver nodes, edit the drape in 3D (shorten the hem, loosen or tighten\n"
-        "the waist) into a target garment, and adjust the pattern until its re-simulated drape matches\n"
+        description="Drape a design on solver nodes, edit the drape in 3D (hem shorter or longer, waist\n"
+        "looser or tighter) into a target garment, and adjust the pattern until its re-simulated drape matches\n"
         "the target. Every solve is a `solve` request over the bus: without --connect the solver nodes\n"
         "(--solver, repeatable; two names fan the solves out over two processes) are started here.\n"
         "Writes pattern.dxf/.svg/.pdf (adjusted), flattened.svg, panels.json, drape_*.obj, adjust.json\n"
@@ -214,7 +214,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     ad.add_argument("pattern", help="pattern JSON (couture/design/v1)")
     edit = ad.add_mutually_exclusive_group(required=True)
-    edit.add_argument("--hem", type=float, metavar="DH", help="[m] hem change; negative shortens (e.g. -0.15)")
+    edit.add_argument(
+        "--hem", type=float, metavar="DH", help="[m] hem change; negative shortens (e.g. -0.15), positive lengthens"
+    )
     edit.add_argument("--waist", type=float, metavar="DG", help="[m] waist girth change; positive loosens (e.g. +0.04)")
     ad.add_argument("--out", required=True, help="output directory")
     ad.add_argument(
@@ -856,10 +858,10 @@ def adjust(args: argparse.Namespace) -> int:
 
     design = load_design(args.pattern)
     edit, amount = ("hem", args.hem) if args.hem is not None else ("waist", args.waist)
-    if not math.isfinite(amount) or amount == 0 or (edit == "hem" and amount > 0):
+    if not math.isfinite(amount) or amount == 0:
         raise ValueError(
             f"--{edit} {amount!r}: "
-            + ("only shortening (negative, e.g. -0.15) is supported" if edit == "hem" else "a nonzero girth change [m]")
+            + ("a nonzero length change [m] (negative shortens)" if edit == "hem" else "a nonzero girth change [m]")
         )
     bus = bus_config_from_args(args)
     out = Path(args.out)

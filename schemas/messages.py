@@ -494,7 +494,8 @@ class AdjustMsg(Message, kw_only=True):
     """'hem': the hem loop slides along the garment (length);
     'waist': the loop at the waist is offset from the body (fit)"""
     amount: float
-    """[m] hem: rise of the hem, negative to shorten (only shortening);
+    """[m] hem: length change, negative to shorten, positive to lengthen
+    (the drape continued below its hem along its own flare);
     waist: girth change, positive to loosen"""
     design: Design = msgspec.field(default_factory=Design)
     """the design whose drape was edited"""
@@ -510,11 +511,6 @@ class AdjustMsg(Message, kw_only=True):
 
         if not math.isfinite(self.amount) or self.amount == 0.0:
             raise SchemaError(f"{self.TYPE}: field `$.amount`: {self.amount!r} m is not a finite nonzero length")
-        if self.edit == "hem" and self.amount > 0:
-            raise SchemaError(
-                f"{self.TYPE}: field `$.amount`: hem {self.amount:+g} m lengthens; only shortening "
-                "(negative) is supported: the drape has no cloth below its hem"
-            )
         if abs(self.amount) > 1.0:
             raise SchemaError(f"{self.TYPE}: field `$.amount`: {self.amount!r} m is beyond +-1 m")
         if self.vertices != 0 and not 50 <= self.vertices <= ADJUST_MAX_VERTICES:

@@ -24,7 +24,7 @@ from schemas.design import Design
 from .fixed_point import MANNEQUIN_HEIGHT, AdjustResult, Simulate, adjust
 from .geometry import edges2, frames3, stretch
 from .seams import drafted_from_mesh, mirror_asymmetry, seam_lengths
-from .target import Target, hem_edit, waist_edit
+from .target import Target, hem_edit, opening_edges, waist_edit, waist_room
 
 EDITS = ("hem", "waist")
 
@@ -51,12 +51,37 @@ def at_resolution(design: Design, vertices: int | None) -> Design:
     )
 
 
-def make_target(edit: str, amount: float, x_src: np.ndarray, tris: np.ndarray) -> Target:
+def make_target(
+    edit: str, amount: float, x_src: np.ndarray, tris: np.ndarray, mesh: GarmentMesh | None = None
+) -> Target:
+    """The target of an edit of drape ``x_src``; with ``mesh`` (for its
+    seams) the edits know the garment's openings: where a hem may grow, where
+    a waist loop goes round."""
+    openings = None if mesh is None else opening_edges(mesh)
     if edit == "hem":
-        return hem_edit(x_src, tris, amount)
+        return hem_edit(x_src, tris, amount, openings=openings)
     if edit == "waist":
-        return waist_edit(x_src, tris, amount)
+        return waist_edit(x_src, tris, amount, openings=openings)
     raise ValueError(f"edit {edit!r}: choose one of {EDITS}")
+
+
+def _check_tightening(design: Design, target: Target, x_src: np.ndarray, mesh: GarmentMesh) -> None:
+    """Refuse a tightening the body does not leave room for (:func:`waist_room`)."""
+    from couture.cloth.body import load_mannequin_sdf
+    from couture.solvers.service import scene_from_design
+
+    scene = scene_from_design(design)
+    name = design.body.name  # as scene_from_design names it: 'default' is the mannequin
+    body = load_mannequin_sdf(verbose=False, name=name)
+    y0 = target.info["y_loop"]
+    room = waist_room(x_src, mesh.tris, y0, body, scene.contact_offset)
+    if -target.amount > room + 0.25 * -target.amount:
+        raise ValueError(
+            f"waist edit: tightening by {-100 * target.amount:.1f} cm presses the cloth into the body: at "
+            f"y = {y0:.3f} m the drape already rests on it (the solver keeps cloth {1e3 * scene.contact_offset:.0f} mm "
+            f"from the skin), so its girth can shrink by {100 * room:.1f} cm at most; a tighter pattern "
+            "only stretches the cloth over the body"
+        )
 
 
 @dataclass
@@ -185,7 +210,9 @@ def run_case(
         f"(residual {src.residual:.1e}, {src.solver}, {src.wall_time_s:.1f} s)"
     )
     t1 = time.perf_counter()
-    target = make_target(edit, amount, src.x, mesh.tris)
+    target = make_target(edit, amount, src.x, mesh.tris, mesh)
+    if edit == "waist" and amount < 0 and design.scene.body:
+        _check_tightening(design, target, src.x, mesh)
     t_target = time.perf_counter() - t1
     say(f"[adjust] target: {edit} {amount:+.3f} m asked, {target.achieved:+.4f} m on the target")
     result = adjust(mesh, target.x, simulate, x_source=src.x, log=log, **adjust_kw)

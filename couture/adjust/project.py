@@ -33,6 +33,7 @@ from schemas.design import Design
 
 from .fixed_point import align_panels
 from .seams import boundary_edges
+from .target import MaterialLoop
 
 
 @dataclass
@@ -48,6 +49,15 @@ class Projection:
     start_rms_m: float = 0.0
     """[m] the same RMS for the source design (what the fit had to explain)"""
     steps: int = 0
+    mesh: GarmentMesh | None = None
+    """the fitted design's mesh, the adjusted one's vertices followed to the
+    fitted options (None where the remesher had to mesh anew)"""
+    scale: float = 1.0
+    """the fitted option changes were scaled by this afterwards (a hem edit's
+    correction on the drape, :func:`couture.adjust.service.scaled`)"""
+    loop_m: tuple[float, float, float] | None = None
+    """[m] with a loop to honour: its cloth length in the source pattern, the
+    adjusted pattern (the goal) and the fitted design"""
 
 
 def _continuous_options(design: Design) -> list:
@@ -69,6 +79,8 @@ def project_to_design(
     *,
     vertices: int | None = None,
     weights: np.ndarray | None = None,
+    loop: MaterialLoop | None = None,
+    loop_length: float | None = None,
     steps: int = 3,
     damping: float = 1e-4,
 ) -> Projection:
@@ -110,9 +122,12 @@ def project_to_design(
     start = float(np.sqrt(((target[bnd] - X[bnd]) ** 2).sum(axis=1).mean()))
     # Ψ at the source design only (a chord method): drafting each option's
     # Jacobian is the cost here, and the outlines are close to linear in the options
-    A_opt = np.column_stack(
-        [service.psi_for(f"param:{o.name}")["coarse"][bnd, :, 0].ravel() for o in opts]
-    )  # Ψ (n, 2, 2), column 0: per unit option change
+    # Ψ (n, 2, 2) of every vertex, column 0: per unit option change
+    psi = [service.psi_for(f"param:{o.name}")["coarse"][:, :, 0] for o in opts]
+    A_opt = np.column_stack([P[bnd].ravel() for P in psi])
+    if loop is not None:
+        loop_goal = loop.length(X_adj) if loop_length is None else float(loop_length)
+        loop_start = loop.length(X)
     k = 0
     for k in range(1, steps + 1):
         rigid = []
@@ -132,7 +147,20 @@ def project_to_design(
         lam = damping * float(np.trace(A.T @ A)) / A.shape[1]
         reg = np.zeros(A.shape[1])
         reg[: len(opts)] = lam
-        sol = np.linalg.solve(A.T @ A + np.diag(reg + 1e-12 * lam), A.T @ r)
+        H, b = A.T @ A + np.diag(reg + 1e-12 * lam), A.T @ r
+        if loop is None:
+            sol = np.linalg.solve(H, b)
+        else:
+            # the loop's cloth length as a linearized equality: c · sol = goal - length(X)
+            g = loop.gradient(X)
+            c = np.zeros(A.shape[1])
+            c[: len(opts)] = [float((g * P).sum()) * sc for P, sc in zip(psi, scale, strict=True)]
+            if not np.any(c):
+                raise ValueError(
+                    f"no continuous option of {design.sloper.kind!r} changes the cloth at y = {loop.y0:.3f} m"
+                )
+            K = np.block([[H, c[:, None]], [c[None, :], np.zeros((1, 1))]])
+            sol = np.linalg.solve(K, np.append(b, loop_goal - loop.length(X)))[:-1]
         q = np.array([values[o.name] for o in opts]) + sol[: len(opts)] * scale
         q = np.clip(q, lo, hi)
         values = {o.name: float(v) for o, v in zip(opts, q, strict=False)}
@@ -157,4 +185,8 @@ def project_to_design(
         fit_max_m=float(d.max()),
         start_rms_m=start,
         steps=k,
+        mesh=service.levels["coarse"].mesh if X.shape == mesh.X.shape else None,
+        loop_m=None
+        if loop is None
+        else (loop_start, loop_goal, loop.length(X) if X.shape == mesh.X.shape else float("nan")),
     )

@@ -1,7 +1,8 @@
 """``couture bench adjust``: direct 3D edits with physics-driven pattern adjustment (Bartle et al. 2016).
 
 Two cases, as in the paper's Table 1: the default skirt shortened by 15 cm
-(hem edit) and the dress loosened by 4 cm at the waist (girth), each at the
+(hem edit) and the dress loosened by 4 cm at the waist (girth); and two
+more: the skirt 5 cm longer and loosened by 4 cm at the waist; each at the
 coarse resolution ``--vertices`` (default 400 and 1600), each adjusted once
 per solver node (``--solvers``, default newton and kinetic: two different
 simulators behind the same ``solve`` request). The solver nodes run as their
@@ -12,7 +13,11 @@ Reported per run: mean stretch (eq. 8) and Hausdorff distance (% of the
 mannequin's height) of every iteration, flattening-only (iteration 0)
 against adjusted, the wall time from the edit to the adjusted pattern
 (target + iterations, solves included) and in total, seam length mismatch
-before and after, and the solver that answered each solve. Writes
+before and after, and the solver that answered each solve. Then the
+design the adjust node would publish (``couture.adjust.service.fit_design``:
+sloper options fitted to the adjusted pattern, corrected on its drapes): the
+change its own drape achieves against the ask, the options, the drapes it
+took (``design_fit``; ``--no-fit`` leaves it out). Writes
 ``adjust.json`` and ``adjust_<case>.png`` (target against the re-simulated
 drapes, and the patterns; the first solver at the largest size, or every run
 with ``--png-all``) to ``--out``.
@@ -36,6 +41,8 @@ from couture.bench import add_out_arg, source_commit, write_results
 CASES = {
     "skirt_hem": ("couture/pattern/examples/default_skirt.json", "hem", -0.15),
     "dress_waist": ("couture/pattern/examples/dress.json", "waist", +0.04),
+    "skirt_longer": ("couture/pattern/examples/default_skirt.json", "hem", +0.05),
+    "skirt_waist": ("couture/pattern/examples/default_skirt.json", "waist", +0.04),
 }
 GOAL = {"hausdorff_pct": 1.0, "stretch": 0.98, "iterations": 5, "seconds": 60.0}
 
@@ -92,6 +99,33 @@ def run_on_bus(client, names: list[str], design, edit: str, amount: float, **kw)
     return case, (fans[-1].counts if fans else {})
 
 
+def design_fit(client, solver: str, design, case, vertices: int) -> dict:
+    """The adjust node's design for ``case`` (its solves on ``solver``): what its drape achieves."""
+    from couture.adjust.service import fit_design
+    from couture.client import SolveFanout
+
+    t0 = time.perf_counter()
+    try:
+        out = fit_design(
+            design, case, lambda mesh: SolveFanout(client, mesh, design, [solver], max_seconds=60.0), vertices=vertices
+        )
+    except ValueError as e:
+        return {"error": str(e), "asked_m": case.amount}
+    p = out.projection
+    return {
+        "asked_m": case.amount,
+        "achieved_m": out.achieved,
+        "ratio": out.achieved / case.amount,
+        "options": p.changed,
+        "fit_rms_mm": 1e3 * p.fit_rms_m,
+        "loop_cloth_m": p.loop_m,
+        "scale": p.scale,
+        "drapes": len(out.calibration),
+        "calibration": out.calibration,
+        "wall_s": time.perf_counter() - t0,
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     from couture.adjust.pipeline import plot_case
     from couture.client import load_design
@@ -108,6 +142,7 @@ def main(argv: list[str] | None = None) -> int:
         default=2,
         help="Gauss-Newton steps with the design sensitivity after the fixed point (reported apart; 0: none)",
     )
+    ap.add_argument("--no-fit", action="store_true", help="leave out the design fit (the adjust node's design)")
     ap.add_argument(
         "--png-all",
         action="store_true",
@@ -147,6 +182,8 @@ def main(argv: list[str] | None = None) -> int:
                         )
                         plot_case(case, png)
                     s = case.summary()
+                    if not a.no_fit:
+                        s["design_fit"] = design_fit(client, solver, design, case, n)
                     s.update(
                         case=case_name,
                         solver_node=solver,
@@ -180,6 +217,19 @@ def main(argv: list[str] | None = None) -> int:
             f"{s['adjusted']['iteration']:2d} {ts['target'] + ts['adjust']:5.1f} {'yes' if s['goal_met'] else 'NO':>4} | "
             f"{fin['hausdorff_pct']:8.2f} {fin['stretch']:6.3f} {ts['edit_to_pattern']:7.1f} "
             f"{'yes' if s['goal_met_with_gradient'] else 'NO':>4} | {sm['flattening_only']:5.1f}->{sm['adjusted']:4.1f}"
+        )
+    print(f"\n{'case':12} {'solver':15} {'verts':>5} | design: achieved / asked [cm], drapes, s | options")
+    for s in runs:
+        f = s.get("design_fit")
+        if f is None:
+            continue
+        if "error" in f:
+            print(f"{s['case']:12} {s['solver_node']:15} {s['vertices']:5d} | {f['error']}")
+            continue
+        opts = ", ".join(f"{k} {a:.3f}->{b:.3f}" for k, (a, b) in sorted(f["options"].items()) if abs(b - a) > 2e-3)
+        print(
+            f"{s['case']:12} {s['solver_node']:15} {s['vertices']:5d} | {100 * f['achieved_m']:+6.1f} / "
+            f"{100 * f['asked_m']:+5.1f} ({f['ratio']:.2f}), {f['drapes']} drapes, {f['wall_s']:5.1f} s | {opts}"
         )
     out = write_results(
         a.out,

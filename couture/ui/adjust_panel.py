@@ -4,8 +4,8 @@ edit the drape directly, get the pattern that drapes that way.
 Pick a loop, then drag its handle in the 3D view:
 
 - ``hem``: the handle sits on the front of the hem and slides only
-  vertically (up: shorter; the drape has no cloth below its hem, so longer
-  is refused);
+  vertically (up: shorter; down: longer, the drape continued below its hem
+  along its own flare);
 - ``waist``: the handle sits on the front of the garment at the mannequin's
   waist and slides only radially, away from the torso axis (out: looser);
   an offset d [m] is a girth change of 2πd.
@@ -103,7 +103,7 @@ class AdjustPanel:
         gui = server.gui
         with gui.add_folder("Adjust pattern", expand_by_default=False):
             self.help = gui.add_markdown(
-                "Drag the loop's handle in the 3D view (hem: up = shorter; waist: out = looser); "
+                "Drag the loop's handle in the 3D view (hem: up = shorter, down = longer; waist: out = looser); "
                 "on release the pattern is adjusted so that it drapes that way."
             )
             self.loop = gui.add_dropdown("loop", LOOPS, initial_value="hem")
@@ -197,8 +197,6 @@ class AdjustPanel:
         why = ""
         if not math.isfinite(amount) or abs(amount) < MIN_AMOUNT_M:
             why = f"drag the {loop} handle (or type a change of at least {100 * MIN_AMOUNT_M:g} cm) first"
-        elif loop == "hem" and amount > 0:
-            why = "only shortening: drag the hem up (the drape has no cloth below its hem)"
         if why:
             self.show_error(why)
             self.place()
