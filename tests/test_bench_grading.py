@@ -66,13 +66,20 @@ def test_grading_on_two_sizes(tmp_path):
 def test_grading_cli_writes_json_and_png(tmp_path):
     from couture.cli import main
 
-    assert main(["bench", "grading", "--sizes", "XL", "--vertices", "150", "--out", str(tmp_path)]) == 0
+    args = ["bench", "grading", "--sizes", "XL", "--vertices", "150", "--max-step", "0.02", "--out", str(tmp_path)]
+    assert main(args) == 0
     data = json.loads((tmp_path / "grading.json").read_text())
+    assert data["solver_options"] == {"max_step": 0.02}
     (row,) = data["rows"]
     assert row["body"] == "XL" and "maps" not in row and set(row["ease"]) == {"bust", "waist", "hip"}
+    # the skirt drapes clear of the body, in its 1 cm contact layer; its panels are gores
+    assert 0.0 < row["clearance"] < 0.011 and row["strain_max_panel"].startswith("gore")
     assert (tmp_path / "grading.png").stat().st_size > 10_000
     with pytest.raises(SystemExit):
         grading.main(["--sizes", "XXXL", "--out", str(tmp_path)])
+    for bad in (["--solver", "kinetic", "--max-step", "0.02"], ["--max-step", "0"]):
+        with pytest.raises(SystemExit):
+            grading.main(["--sizes", "XL", *bad, "--out", str(tmp_path)])
 
 
 def test_an_arc_is_no_girth():

@@ -71,6 +71,10 @@ class SizeFit:
     iterations: int
     seconds: float
     diagnosis: str = ""
+    strain_max_panel: str = ""
+    """the panel of the most stretched triangle"""
+    clearance: float = float("nan")
+    """[m] the draped garment's least distance to the body (negative: inside)"""
     maps: dict = field(default_factory=dict, repr=False)
     """per triangle: 'strain', 'pressure' (not written to JSON)"""
 
@@ -182,8 +186,17 @@ def body_landmarks(name: str) -> tuple[dict[str, float], dict[str, float]]:
     return {k: float(m[f"{k}_girth"]) for k in LANDMARKS}, {k: float(m[f"{k}_y"]) for k in LANDMARKS}
 
 
-def drape_on(design, body: str, level: str = "coarse", method: str = "newton", max_seconds: float = 60.0):
-    """Drape ``design`` on ``body`` the way the nodes do; returns (result, model, mesh)."""
+def drape_on(
+    design,
+    body: str,
+    level: str = "coarse",
+    method: str = "newton",
+    max_seconds: float = 60.0,
+    solver_options: dict | None = None,
+):
+    """Drape ``design`` on ``body`` the way the nodes do; returns (result, model, mesh).
+    ``solver_options`` go to the solver's constructor (``couture.solvers.get_solver``;
+    e.g. Newton's ``max_step``), None: the nodes' solver as it is."""
     import msgspec
 
     from couture import bodies
@@ -195,6 +208,10 @@ def drape_on(design, body: str, level: str = "coarse", method: str = "newton", m
     d = msgspec.structs.replace(design, body=Body(name=body))
     remesher = RemeshService()
     solver = SolveService(method=method, max_seconds={"coarse": max_seconds, "fine": max_seconds})
+    if solver_options:
+        from couture.solvers import get_solver
+
+        solver.solver = get_solver(method, **solver_options)
     ups = remesher.set_design(d, 1)
     solver.set_design(d)
     for up in ups:
@@ -205,9 +222,16 @@ def drape_on(design, body: str, level: str = "coarse", method: str = "newton", m
     return runs[-1].result, lm.model, lm.mesh
 
 
-def fit(design, body: str, level: str = "coarse", method: str = "newton", max_seconds: float = 60.0) -> SizeFit:
+def fit(
+    design,
+    body: str,
+    level: str = "coarse",
+    method: str = "newton",
+    max_seconds: float = 60.0,
+    solver_options: dict | None = None,
+) -> SizeFit:
     """Drape on one body and measure the fit."""
-    result, model, mesh = drape_on(design, body, level, method, max_seconds)
+    result, model, mesh = drape_on(design, body, level, method, max_seconds, solver_options)
     x = result.x
     stretch = principal_stretches(mesh.X, mesh.tris, x)
     strain = stretch[:, 0] - 1.0
@@ -240,6 +264,8 @@ def fit(design, body: str, level: str = "coarse", method: str = "newton", max_se
         iterations=int(result.iterations),
         seconds=float(result.wall_time),
         diagnosis=result.diagnosis,
+        strain_max_panel=mesh.panel_names[mesh.tri_panel[int(np.argmax(strain))]] if mesh.panel_names else "",
+        clearance=float(model.body.phi_grad(x)[0].min()) if model.body is not None else float("nan"),
         maps={"strain": strain, "pressure": p[mesh.tris].mean(axis=1), "x": x, "tris": mesh.tris},
     )
 
@@ -251,14 +277,14 @@ def _cm(v: float | None) -> str:
 def table(rows: list[SizeFit]) -> str:
     lines = [
         f"{'body':7s} {'n':>5s} {'top-waist cm':>12s} {'ease cm bust/waist/hip':>22s} {'strain max':>10s} {'p95':>6s} "
-        f"{'p mean/max Pa':>14s} {'contact':>7s} {'residual':>9s} conv"
+        f"{'p mean/max Pa':>14s} {'contact':>7s} {'residual':>9s} conv  {'clear mm':>8s} strain max at"
     ]
     for r in rows:
         e = r.ease
         lines.append(
             f"{r.body:7s} {r.vertices:5d} {_cm(r.top_y - r.landmark_y['waist']):>12s} {_cm(e['bust'])} / {_cm(e['waist'])} / {_cm(e['hip'])}  "
             f"{r.strain_max:10.3f} {r.strain_p95:6.3f} {r.pressure_mean:6.1f}/{r.pressure_max:<7.1f} "
-            f"{r.contact_fraction:7.2f} {r.residual:9.1e} {r.converged}"
+            f"{r.contact_fraction:7.2f} {r.residual:9.1e} {r.converged!s:5s} {1000 * r.clearance:8.1f} {r.strain_max_panel}"
         )
     return "\n".join(lines)
 
@@ -322,6 +348,7 @@ def run(
     method: str = "newton",
     max_seconds: float = 60.0,
     progress=print,
+    solver_options: dict | None = None,
 ) -> list[SizeFit]:
     """Fit of one design on each body in ``sizes`` (default: every body)."""
     import msgspec
@@ -340,7 +367,7 @@ def run(
     rows = []
     for k, s in enumerate(sizes):
         t0 = time.perf_counter()
-        r = fit(design, s, level, method, max_seconds)
+        r = fit(design, s, level, method, max_seconds, solver_options)
         rows.append(r)
         progress(
             f"[grading] {k + 1}/{len(sizes)} {s}: {r.vertices} vertices, residual {r.residual:.1e} "
@@ -360,13 +387,24 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--vertices", type=int, default=None, help="coarse vertex count (default: the design's)")
     ap.add_argument("--solver", default="newton")
     ap.add_argument("--max-seconds", type=float, default=60.0, help="[s] cap per level solve")
+    ap.add_argument(
+        "--max-step",
+        type=float,
+        default=None,
+        help="[m] Newton's largest vertex move per step (default: the solver's, a quarter of the garment's extent)",
+    )
     ap.add_argument("--no-png", action="store_true")
     add_out_arg(ap)
     args = ap.parse_args(argv)
     if not args.design.exists():
         ap.error(f"--design {args.design}: no such file")
+    if args.max_step is not None and (args.solver != "newton" or not args.max_step > 0):
+        ap.error("--max-step: a positive length, with --solver newton")
+    options = None if args.max_step is None else {"max_step": args.max_step}
     try:
-        rows = run(args.design, args.sizes, args.level, args.vertices, args.solver, args.max_seconds)
+        rows = run(
+            args.design, args.sizes, args.level, args.vertices, args.solver, args.max_seconds, solver_options=options
+        )
     except ValueError as e:
         ap.error(str(e))
     print(table(rows))
@@ -378,13 +416,15 @@ def main(argv: list[str] | None = None) -> int:
             "design": str(args.design),
             "level": args.level,
             "solver": args.solver,
+            "solver_options": options or {},
             "commit": source_commit(),
             "rows": [{k: v for k, v in asdict(r).items() if k != "maps"} for r in rows],
         },
     )
     print(f"wrote {path}")
     if not args.no_png:
-        render(out / "grading.png", rows, f"{args.design.name} on each body ({args.level}, {args.solver})")
+        how = args.solver if options is None else f"{args.solver}, max step {args.max_step:g} m"
+        render(out / "grading.png", rows, f"{args.design.name} on each body ({args.level}, {how})")
         print(f"wrote {out / 'grading.png'}")
     return 0
 
