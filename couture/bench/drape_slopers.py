@@ -112,7 +112,9 @@ def drape(
         model.release_friction()  # each solver from the placement, with no anchors of the last one
         # friction from the first iteration, as the solver node solves a level from its placement
         # (couture.solvers.service.FRICTION_AT_ONCE)
-        out = solver.solve(model, x0.copy(), tol=tol, max_seconds=max_seconds, friction_after=math.inf)
+        out = solver.solve(
+            model, x0.copy(), tol=tol, max_seconds=max_seconds, friction_after=math.inf, from_placement=True
+        )
         x = out.x
         phi = sdf.phi_grad(x)[0]
         row = DrapeRow(

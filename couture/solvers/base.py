@@ -59,8 +59,12 @@ class Solver(Protocol):
         max_seconds: float = 60.0,
         callback: ProgressCallback | None = None,
         friction_after: float | None = None,
+        from_placement: bool = False,
     ) -> SolveResult:
         """``friction_after``: for this solve, the relative residual below which friction
         anchors act (math.inf: from the first iteration; None: the solver's own setting;
-        a solver without a friction schedule ignores it)."""
+        a solver without a friction schedule ignores it). ``from_placement``: x0 is
+        a placement (pieces around the body, seams open by centimetres): a solver
+        whose steps can be long keeps them from carrying cloth through the body
+        (Newton's surface guard); others ignore it."""
         ...

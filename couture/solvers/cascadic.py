@@ -248,7 +248,7 @@ def solve_cascadic(
     the polished start), 'prolongation_residual_raw' (that of the plain
     interpolation), 'polish_s' and 'coarse_s'.
     """
-    res_c = solver.solve(coarse_model, x0_coarse, tol=tol_coarse, max_seconds=max_seconds)
+    res_c = solver.solve(coarse_model, x0_coarse, tol=tol_coarse, max_seconds=max_seconds, from_placement=True)
     if on_level is not None and on_level("coarse", res_c):
         return res_c, None
     x_raw = prolong.apply(coarse_model.mesh.tris, res_c.x)

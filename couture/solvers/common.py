@@ -182,6 +182,49 @@ def deepest_inside(model, x: np.ndarray) -> float:
     return float(max(0.0, -np.min(phi)))
 
 
+class SurfaceGuard:
+    """Keeps a line search from jumping cloth through the body: a trial state is
+    refused when a free vertex that was outside the body's surface (phi >= 0)
+    ends below it after moving farther than the contact layer is thick (a long
+    step through a thin part, an arm or between the legs, where the distance
+    field then pushes out through the far side and a balance is reached
+    inside). Shorter moves into the body are left to the contact force, which
+    acts across the layer: seams pulling a piece onto the body from a placement
+    press vertices against it, and refusing every crossing would freeze them
+    there. A model without a body is never refused."""
+
+    def __init__(self, model):
+        """model None: a guard that refuses nothing."""
+        body = getattr(model, "body", None)
+        free = np.asarray(model.free, bool) if model is not None else np.zeros(0, bool)
+        self.body = body if body is not None and free.any() else None
+        self.free = free
+        self.layer = float(getattr(model, "contact_offset", 0.0) or 0.0)
+        self.x: np.ndarray | None = None
+        self.phi: np.ndarray | None = None
+
+    def _phi(self, x: np.ndarray) -> np.ndarray:
+        phi, _ = self.body.phi_grad(np.ascontiguousarray(x[self.free], dtype=np.float64))
+        return phi
+
+    def at(self, x: np.ndarray) -> None:
+        """The state a step starts from."""
+        if self.body is not None:
+            self.x = x[self.free]
+            self.phi = self._phi(x)
+
+    def refuses(self, x_try: np.ndarray) -> bool:
+        if self.body is None:
+            return False
+        if self.phi is None or self.x is None:
+            raise RuntimeError("SurfaceGuard.at(x) was not called for the step's start")
+        crossed = (self._phi(x_try) < 0.0) & (self.phi >= 0.0)
+        if not crossed.any():
+            return False
+        move = x_try[self.free][crossed] - self.x[crossed]
+        return bool(np.any((move * move).sum(axis=1) > self.layer * self.layer))
+
+
 def verdict(model, x: np.ndarray, tol: float) -> tuple[bool, float, str]:
     """(converged, relative residual, why not) decided from fresh forces at x,
     independently of how the solver's loop got there: the relative residual is

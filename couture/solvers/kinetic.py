@@ -221,6 +221,7 @@ class KineticSolver:
         callback: ProgressCallback | None = None,
         v0: np.ndarray | None = None,
         friction_after: float | None = None,
+        from_placement: bool = False,  # small implicit steps: no guard needed
     ) -> SolveResult:
         t_start = time.perf_counter()
         dt = self.dt

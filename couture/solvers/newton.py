@@ -49,6 +49,7 @@ from .common import (
     BestState,
     FrictionSchedule,
     ResidualScale,
+    SurfaceGuard,
     Watch,
     bad_start,
     energy_round_off,
@@ -150,6 +151,7 @@ class NewtonSolver:
         max_seconds: float = 120.0,
         callback: ProgressCallback | None = None,
         friction_after: float | None = None,
+        from_placement: bool = False,
     ) -> SolveResult:
         t_start = time.perf_counter()
         n = model.n
@@ -200,6 +202,9 @@ class NewtonSolver:
         stats["assembly_s"] += time.perf_counter() - ta
         e_mark = E
         best = BestState(model)
+        # from a placement the first steps close seams centimetres wide: a step of up
+        # to max_step (a quarter of the garment) carried a collar 3-4 cm into the neck
+        guard = SurfaceGuard(model if from_placement else None)
         while True:
             now = time.perf_counter() - t_start
             history.append((now, r))
@@ -287,6 +292,7 @@ class NewtonSolver:
 
             accepted = False
             e_noise = None
+            guard.at(x)
             while not accepted:
                 tl = time.perf_counter()
                 h_eff = h_true if use_true else h
@@ -331,6 +337,12 @@ class NewtonSolver:
                 ta = time.perf_counter()
                 for _ in range(self.max_backtracks):
                     x_try = x + alpha * P
+                    if guard.refuses(x_try):
+                        # through the body's surface: shorter
+                        alpha *= 0.5
+                        stats["backtracks"] += 1
+                        stats["surface_backtracks"] = stats.get("surface_backtracks", 0) + 1
+                        continue
                     E_try = model.energy(x_try)
                     stats["energy_evals"] += 1
                     if np.isfinite(E_try) and E_try <= E - self.armijo * alpha * slope:

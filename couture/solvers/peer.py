@@ -270,6 +270,7 @@ class Style3DSolver:
         max_seconds: float = 60.0,
         callback: ProgressCallback | None = None,
         friction_after: float | None = None,  # Style3D's friction acts from the first step: ignored
+        from_placement: bool = False,  # ignored
     ) -> SolveResult:
         t_start = time.perf_counter()
         x = pinned_positions(model, x0)

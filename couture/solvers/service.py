@@ -334,6 +334,7 @@ class SolveService:
                 max_seconds=self.max_seconds[level],
                 callback=cb,
                 friction_after=math.inf if at_once else None,
+                from_placement=how == "placement",
             )
             lm.x = result.x
             lm.converged = result.converged

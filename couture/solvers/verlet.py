@@ -163,6 +163,7 @@ class VerletSolver:
         max_seconds: float = 60.0,
         callback: ProgressCallback | None = None,
         friction_after: float | None = None,  # no friction schedule here: ignored
+        from_placement: bool = False,  # ignored
     ) -> SolveResult:
         t_start = time.perf_counter()
         sm = self.spring_model(model)
