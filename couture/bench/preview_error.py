@@ -122,6 +122,7 @@ def run(
                         "estimate_rounds": est.rounds if est is not None else 0,
                         "estimate_cg_iterations": est.cg_iterations if est is not None else 0,
                         "estimate_evaluations": est.evaluations if est is not None else 0,
+                        "estimate_factorizations": est.factorizations if est is not None else 0,
                         "frictionless_linearisation_error_mm": 1e3 * bare_err,
                         "relative_residual": pred.error_estimate,
                         "estimate_ms": 1e3 * est_s,

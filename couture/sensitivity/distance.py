@@ -39,6 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .factor import FactorizationError, _factorize
+
 
 @dataclass
 class DistanceEstimate:
@@ -54,6 +56,8 @@ class DistanceEstimate:
     """slip-aware rounds taken (0: nothing slipped after the chord step)"""
     cg_iterations: int = 0
     """conjugate-gradient iterations over all rounds"""
+    factorizations: int = 0
+    """factorizations of the stiffness less the released springs (``refactor_after``)"""
     evaluations: int = 0
     """energy or force evaluations of the cloth model (the cost besides
     ``cg_iterations + rounds + 1`` back-substitutions with the factor)"""
@@ -139,8 +143,26 @@ class _Reduced:
         out[self.dofs] = y
         return out.reshape(self.n, 3)
 
+    pre = None
+    """a factor of A - D for the anchors released when it was made (``refactor``),
+    else None: the equilibrium's own factor preconditions"""
+    pre_released = 0
+    """how many anchors ``pre`` has released"""
+
     def precondition(self, z: np.ndarray) -> np.ndarray:
-        return self.f._fac.solve(z)
+        return (self.pre if self.pre is not None else self.f._fac).solve(z)
+
+    def refactor(self, D: sp.csr_matrix, released: int) -> bool:
+        """Factor A - D (the stiffness less the released springs) as the
+        preconditioner: one factorization instead of a CG iteration per released
+        anchor (the preconditioned operator's rank-2-per-anchor update). False,
+        keeping the old one, where A - D is not positive definite."""
+        try:
+            self.pre = _factorize((self.A - D).tocsc())
+        except (FactorizationError, np.linalg.LinAlgError, RuntimeError, ValueError):
+            return False
+        self.pre_released = released
+        return True
 
     def anchor_springs(self, verts: np.ndarray, normals: np.ndarray, k_t: float) -> sp.csr_matrix:
         """ΔK of the anchor springs k_t (I - n nᵀ) at ``verts``, in these coordinates."""
@@ -203,6 +225,7 @@ def estimate_distance(
     settle: float = 0.1,
     cg_iters: int = 50,
     cg_rtol: float = 1e-2,
+    refactor_after: int | None = 10,
 ) -> DistanceEstimate:
     """Estimated distance of the predicted drape x (n, 3) from the equilibrium of
     ``model`` at its (edited) rest shape, ``model`` holding the friction state
@@ -212,7 +235,12 @@ def estimate_distance(
     step, taken only when the chord step left an anchor beyond its cone (0:
     the chord step alone); they stop when a step releases no new anchor and
     moved no vertex more than ``settle`` times the distance so far.
-    ``cg_iters``, ``cg_rtol``: the CG budget of each step. ``model``'s
+    ``cg_iters``, ``cg_rtol``: the CG budget of each step; ``refactor_after``:
+    when more than this many anchors (and more than half as many as before)
+    were released since the preconditioner was made, factor the stiffness
+    less their springs anew (None: always the
+    equilibrium's factor; at 10k vertices a thousand anchors slip, and CG
+    with the equilibrium's factor took 300 back-substitutions). ``model``'s
     friction state is left as it was."""
     x = np.asarray(x, dtype=np.float64)
     if x.shape != (model.n, 3):
@@ -255,6 +283,9 @@ def estimate_distance(
             out.rounds += 1
             released = np.nonzero(anchored0 & ~model.anchored)[0]
             D = red.anchor_springs(released, held[3][released], model.friction_stiffness)
+            new = len(released) - red.pre_released
+            if refactor_after is not None and new > max(refactor_after, red.pre_released // 2):
+                out.factorizations += red.refactor(D, len(released))
             e, r = energy_and_forces(y)
             z, its = _pcg(red, D, red.to(r), cg_iters, cg_rtol)
             out.cg_iterations += its
