@@ -1,9 +1,11 @@
 """``couture bench preview_error``: is a preview's error estimate a distance?
 
 Each predicted drape carries an estimate of its distance from the true
-equilibrium (``Predictor.distance_of``: the largest vertex motion of one
+equilibrium (``Predictor.distance_of``: the largest vertex motion of a
 chord-Newton correction K⁻¹ F(x_pred; X(d)), K the factor at the equilibrium
-the prediction started from). This bench checks it against the truth over a
+the prediction started from, followed, where it pulls friction anchors beyond
+their Coulomb cone, by rounds that let them slip; ``couture.sensitivity.distance``;
+the held-friction chord step alone is reported beside it). This bench checks it against the truth over a
 set of edits: the default skirt and the dress on the mannequin, friction on,
 each sloper parameter in ``--params`` changed by each of ``--steps`` (both
 signs). Per edit:
@@ -102,6 +104,8 @@ def run(
                 true = float(np.max(np.linalg.norm(pred.x - r.x, axis=1)))
                 bare_err = float(np.max(np.linalg.norm(q.drag(d, error_estimate=False).x - r.x, axis=1)))
                 ratio = pred.error_m / true if true > 0 else float("inf")
+                est = p.last_distance
+                chord = est.chord if est is not None else float("nan")
                 rows.append(
                     {
                         "garment": kind,
@@ -112,6 +116,13 @@ def run(
                         "true_error_mm": 1e3 * true,
                         "ratio": ratio,
                         "within_2x": bool(0.5 <= ratio <= 2.0),
+                        "chord_estimate_mm": 1e3 * chord,
+                        "chord_ratio": chord / true if true > 0 else float("inf"),
+                        "estimate_slipped": est.slipped if est is not None else 0,
+                        "estimate_rounds": est.rounds if est is not None else 0,
+                        "estimate_cg_iterations": est.cg_iterations if est is not None else 0,
+                        "estimate_evaluations": est.evaluations if est is not None else 0,
+                        "estimate_factorizations": est.factorizations if est is not None else 0,
                         "frictionless_linearisation_error_mm": 1e3 * bare_err,
                         "relative_residual": pred.error_estimate,
                         "estimate_ms": 1e3 * est_s,
@@ -142,6 +153,21 @@ def summarize(rows: list[dict]) -> dict:
         "ratio_p90": float(np.percentile(ratios, 90)) if len(ratios) else float("nan"),
         "underestimates_2x": int(np.sum(ratios < 0.5)),
         "overestimates_2x": int(np.sum(ratios > 2.0)),
+        "chord_within_2x_fraction": float(np.mean([0.5 <= r["chord_ratio"] <= 2.0 for r in ok]))
+        if ok
+        else float("nan"),
+        "estimate_ms_median": float(np.median([r["estimate_ms"] for r in rows])) if rows else float("nan"),
+        "estimate_evaluations_median": float(np.median([r["estimate_evaluations"] for r in rows])) if rows else 0.0,
+        "estimate_cg_iterations_median": float(np.median([r["estimate_cg_iterations"] for r in rows])) if rows else 0.0,
+        "by_garment": {
+            g: {
+                "edits": len(gr),
+                "within_2x_fraction": float(np.mean([r["within_2x"] for r in gr])),
+                "ratio_median": float(np.median([r["ratio"] for r in gr])),
+            }
+            for g in sorted({r["garment"] for r in ok})
+            for gr in [[r for r in ok if r["garment"] == g]]
+        },
     }
 
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from couture.cloth.model import ClothModel
 
+from .distance import DistanceEstimate, estimate_distance
 from .factor import FactorInfo, SensitivityFactor
 from .friction import FrictionHeld, hold_friction
 from .gmls import GMLSCache
@@ -50,8 +51,8 @@ class Prediction:
     """samples in the cache"""
     error_m: float = float("nan")
     """estimated distance of x from the true equilibrium at X(d) [m]: the largest
-    vertex motion of one Newton correction (:meth:`Predictor.distance_of`; NaN
-    when not computed)"""
+    vertex motion of a chord-Newton correction that lets over-pulled friction
+    anchors slip (:meth:`Predictor.distance_of`; NaN when not computed)"""
 
 
 def default_model_at(model: ClothModel, X: np.ndarray) -> ClothModel:
@@ -232,36 +233,38 @@ class Predictor:
             self._equilibrium()
             return self.f_eq
 
+    slip_rounds = 8
+    """at most this many slip-aware rounds in :meth:`distance_of` (0: the held-friction chord step alone)"""
+    last_distance: DistanceEstimate | None = None
+    """what the latest :meth:`distance_of` found (anchors released, CG iterations)"""
+
     def distance_of(self, x: np.ndarray, d) -> float:
         """Estimated distance [m] of a predicted drape x from the true equilibrium
-        at X(d): the largest vertex motion of one chord-Newton step from x,
-        ``t K⁻¹ F(x; X(d))`` with the factor at the equilibrium and t from a
-        backtracking (Armijo) search on the energy at X(d) (one force
-        evaluation, one back-substitution, a few energy evaluations).
+        at X(d) (``couture.sensitivity.distance``): the largest vertex motion of
+        one chord-Newton step from x, ``t K⁻¹ F(x; X(d))`` with the factor at the
+        equilibrium and t near the energy's minimum along it at X(d); when that
+        step pulls friction anchors beyond their Coulomb cone, up to
+        ``slip_rounds`` rounds that release them (kinetic friction, as the
+        solvers do) and step along the corrected system (K - the released
+        springs), solved by CG preconditioned with the factor, until no anchor
+        slips and the steps settle.
 
-        The search matters: the bare correction (t = 1) overshoots by orders of
-        magnitude where the prediction loads a soft mode (a light fabric's
-        wrinkles, a sheet's new contacts), measured up to 1000x on SC's Fig. 5
-        strip. What it cannot see: anchors that the edit pulls beyond their
-        Coulomb cone, which slip in the true re-solve (``couture bench
-        preview_error``). NaN before a factorization."""
+        The line minimum matters: the bare correction (t = 1) overshoots by
+        orders of magnitude where the prediction loads a soft mode (a light
+        fabric's wrinkles, a sheet's new contacts; measured up to 1000x on SC's
+        Fig. 5 strip, 10⁴x on the default skirt), and a backtracking search
+        lands anywhere in the flat valley along it. The slip rounds matter
+        where an edit makes the cloth slide on the body (``couture bench
+        preview_error``). :attr:`last_distance` keeps the details. NaN before
+        a factorization."""
         f = self.factor
         if f is None:
             return float("nan")
         with self._edit_lock:
             m = self.model_for(d)
-            f_eq = self._f_eq()
-            e0, r = m.energy_and_forces(x)
-            # forces and energy relative to the equilibrium's own unbalance (``set_equilibrium``):
-            # F - f_eq = -grad(E + f_eq . x)
-            r = r - f_eq
-            e0 += float(np.vdot(f_eq, x))
-            dx = f.correction(r)
-            slope = float(np.vdot(r, dx))
-            t = 1.0
-            while t > 1e-6 and m.energy(x + t * dx) + float(np.vdot(f_eq, x + t * dx)) > e0 - 1e-4 * t * slope:
-                t *= 0.5
-        return float(t * np.max(np.linalg.norm(dx, axis=1))) if len(dx) else 0.0
+            est = estimate_distance(m, f, x, self._f_eq(), rounds=self.slip_rounds)
+        self.last_distance = est
+        return est.distance
 
     def drag(self, d, method: str | None = None, error_estimate: bool | None = None) -> Prediction:
         """Prediction at pointer position d (2,) by 'gmls' (default), 'mls' or
