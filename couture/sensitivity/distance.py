@@ -87,7 +87,7 @@ def _line_min(energy, energy_and_forces, x, dx, e0, slope, *, t_max=1.0, refine=
 
     t = t_max
     e = energy(x + t * dx)
-    above = None  # the last step tried with a higher energy
+    above: float | None = None  # the last step tried with a higher energy
     while not e <= e0 and t > t_min:
         above = t
         curv = (e - e0 + slope * t) / (t * t) if np.isfinite(e) else np.inf
@@ -100,7 +100,11 @@ def _line_min(energy, energy_and_forces, x, dx, e0, slope, *, t_max=1.0, refine=
     flat = 0.01 * slope  # |dE/dt| this small: at the minimum, as far as the distance goes
     if abs(h) <= flat or (h < 0.0 and above is None):
         return t  # at the minimum, or still descending at the longest step allowed
-    lo, hi = (t, above) if h < 0.0 else (0.0, t)
+    if h < 0.0:
+        assert above is not None  # returned above otherwise
+        lo, hi = t, above
+    else:
+        lo, hi = 0.0, t
     for _ in range(refine):
         mid = np.sqrt(lo * hi) if lo > 0.0 and hi > 4.0 * lo else 0.5 * (lo + hi)
         em, hm = dE(mid)
