@@ -49,7 +49,9 @@ drapes are compared polished to ``POLISH_TOL`` on their own recording's model
 are separate equilibria of the same physics (``PhysicsRule.polish``). Iterations
 and wall times are reported, never compared. Meshes (what the remesher drafts) are
 compared field by field within ``rtol``/``atol``, integers exactly; their
-``x0`` carries the previous drape over, so only the cap holds there.
+``x0`` carries the previous drape over, so only the cap holds there, or the
+deviation of a previous drape of that level accepted as a separate
+equilibrium, when larger.
 
 ``make`` records into a temporary file, replaces the golden, and prints what
 changed against the old one (:func:`changes`: per topic the largest
