@@ -472,3 +472,42 @@ def test_reduced_system_matches_slicing():
     dof = s.dof
     ref = 2.0 * K[dof][:, dof] + 3.0 * sp.diags(np.repeat(m.mass[order], 3))
     assert abs(s.matrix() - ref).max() < 1e-12
+
+
+def test_surface_guard_refuses_jumps_through_the_body_only():
+    """Newton's placement guard (``SurfaceGuard``): a trial state is refused
+    when a vertex outside the body's surface ends inside it after moving
+    farther than the contact layer is thick; a short move into the layer's
+    reach, a move that stays outside and a vertex already inside coming out
+    are allowed; without a body (or a model) nothing is refused."""
+    from types import SimpleNamespace
+
+    from couture.cloth.body import SphereBody
+    from couture.solvers.common import SurfaceGuard
+
+    body = SphereBody(center=np.zeros(3), radius=0.25)
+    model = SimpleNamespace(body=body, free=np.ones(3, bool), contact_offset=0.01)
+    x = np.array([[0.0, 0.26, 0.0], [0.3, 0.0, 0.0], [0.0, 0.0, -0.2]])  # on the layer, outside, inside
+    g = SurfaceGuard(model)
+    g.at(x)
+    jump = x.copy()
+    jump[0] = [0.0, -0.1, 0.0]  # 0.36 m, through the sphere to inside it
+    assert g.refuses(jump)
+    creep = x.copy()
+    creep[0] = [0.0, 0.245, 0.0]  # a 15 mm move ending 5 mm inside
+    assert g.refuses(creep)
+    short = x.copy()
+    short[0] = [0.0, 0.2505, 0.0]  # 9.5 mm, still 0.5 mm outside
+    assert not g.refuses(short)
+    dip = x.copy()
+    dip[0] = [0.0, 0.2495, 0.0]  # 10.5 mm, ending 0.5 mm inside
+    assert g.refuses(dip)
+    g2 = SurfaceGuard(SimpleNamespace(body=body, free=np.ones(1, bool), contact_offset=0.01))
+    g2.at(np.array([[0.0, 0.252, 0.0]]))
+    assert not g2.refuses(np.array([[0.0, 0.245, 0.0]]))  # 7 mm, 5 mm inside: left to the contact force
+    out = x.copy()
+    out[2] = [0.0, 0.0, -0.4]  # the inside vertex comes out, far
+    out[1] = [0.5, 0.0, 0.0]  # the outside one moves, stays outside
+    assert not g.refuses(out)
+    assert not SurfaceGuard(None).refuses(jump)
+    assert not SurfaceGuard(SimpleNamespace(body=None, free=np.ones(3, bool))).refuses(jump)
