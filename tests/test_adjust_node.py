@@ -137,8 +137,12 @@ def test_hem_request_over_the_bus_moves_the_drapes_hem_toward_the_target(system)
     assert out.fit_rms_m < 0.03
     # the node measured the published design's own drape: most of the 15 cm
     assert -0.2 < out.achieved_m < -0.08, out.achieved_m
-    published = [p for p in listen.patterns if p.design_id == out.design_id]
-    assert published and published[0].source == "adjust"
+    # the pattern and the done status travel on two topics: the pattern may land second
+    deadline = time.monotonic() + 15
+    while not (published := [p for p in listen.patterns if p.design_id == out.design_id]):
+        assert time.monotonic() < deadline, "the adjusted design was never published"
+        time.sleep(0.05)
+    assert published[0].source == "adjust"
     assert published[0].design.resolution == SMALL.resolution  # the design on screen, not the adjustment's mesh
     mesh, adj = _coarse_drape_of(client, out.design_id, timeout=60)
     x_adj = adj.x.numpy()

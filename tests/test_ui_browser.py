@@ -153,10 +153,10 @@ def test_adjust_folder_button_and_hem_handle_drag_send_requests(session):
     assert sent[0] == ("hem", pytest.approx(-0.06))
     f3.get_by_text("waiting for the adjust node").wait_for(timeout=30_000)
     # the handle: its arrow points up from the hem's front; grab it half-way and drag up
-    ui.adjust.place()
-    a = ui.adjust.anchor
     tries = []
     for _ in range(3):
+        ui.adjust.place()  # where the handle is now (a newer drape may have moved the hem)
+        a = ui.adjust.anchor
         cam = CameraState.from_viser(stable_camera(session["c3"], page))
         origin = _iframe_origin(page, "#view3d")
         grab = cam.to_pixels((a + [0.0, 0.08, 0.0])[None])[0] + origin
@@ -166,7 +166,6 @@ def test_adjust_folder_button_and_hem_handle_drag_send_requests(session):
             wait_until(lambda n0=n0: len(sent) > n0, 20, page)
         except TimeoutError:
             tries.append(float(ui.adjust.amount_cm.value))
-            ui.adjust.place()
             continue
         break
     else:
