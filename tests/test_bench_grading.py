@@ -40,6 +40,40 @@ def test_girth_of_a_cylinder_section_is_its_polygon_perimeter():
     assert grading.girth_at(x, tris, 0.3) is None
 
 
+def _tube(cx: float, r: float, K: int = 24, base: int = 0):
+    th = 2 * np.pi * np.arange(K) / K
+    ring = np.column_stack([cx + r * np.cos(th), np.zeros(K), r * np.sin(th)])
+    x = np.concatenate([ring, ring + [0.0, 0.2, 0.0]])
+    tris = np.array(
+        [[k, (k + 1) % K, K + k] for k in range(K)] + [[(k + 1) % K, K + (k + 1) % K, K + k] for k in range(K)]
+    )
+    return x, tris + base
+
+
+def test_girth_of_a_sleeved_garment_is_its_torso_part():
+    """A bodice tube round a torso and two sleeve tubes round arms at the same
+    height: given the body's torso and arm sections there, the girth is the
+    bodice's polygon alone (a sleeve is no bust ease); without them, the hull
+    goes round the sleeves too, as it did."""
+    K, R, r, a = 24, 0.15, 0.05, 0.25
+    body, _ = _tube(0.0, R - 0.01, K)
+    arm_l, _ = _tube(-a, r - 0.01, K)
+    arm_r, _ = _tube(a, r - 0.01, K)
+    xb, tb = _tube(0.0, R, K)
+    xl, tl = _tube(-a, r, K, base=len(xb))
+    xr, tr = _tube(a, r, K, base=2 * len(xb))
+    x = np.concatenate([xb, xl, xr])
+    tris = np.concatenate([tb, tl, tr])
+    torso = body[:K][:, [0, 2]]
+    arms = [arm_l[:K][:, [0, 2]], arm_r[:K][:, [0, 2]]]
+    g = grading.girth_at(x, tris, 0.1, centre=np.zeros(2), section=(torso, arms))
+    assert g == pytest.approx(2 * K * R * np.sin(np.pi / K), rel=1e-9)
+    p = np.array([[0.16, 0.0], [0.21, 0.0], [0.29, 0.0], [0.0, 0.2]])
+    assert grading.nearer_torso(p, torso, arms).tolist() == [True, False, False, True]
+    everything = grading.girth_at(x, tris, 0.1, centre=np.zeros(2))
+    assert everything > g + 2 * (a - R)  # round the sleeves: longer by at least both reaches
+
+
 def test_grading_on_two_sizes(tmp_path):
     """The default skirt on XS and XL, small coarse meshes: every field is there,
     the maps have one value per triangle; the same skirt, loose on XS (waist

@@ -19,6 +19,12 @@ fine mesh). Per size:
   sits in the contact layer, so a skin-tight garment reads about
   2 pi x offset (6 cm) of ease; None where the garment does not go round the
   body at that height (a skirt at the bust, or a skirt slid below the waist).
+  Like the body's girth, the garment's is the torso's: where the body's
+  section at that height has other loops (the arms at the bust), only the
+  cloth nearer the torso than the arms counts, and it must go round the torso
+  by itself (a sleeve round the arm is no bust ease; before, the hull went
+  round the sleeves and a set-in shirt read 44-49 cm of bust ease; its
+  armholes open below the bust line, so it now reads none there).
 
 Prints a progress line per size and the fit table, writes ``grading.json`` and
 ``grading.png`` (one column per size; rows: strain, pressure; front view) to
@@ -140,18 +146,41 @@ def uncovered_angle(segs: np.ndarray, centre: np.ndarray) -> float:
     return float(max(widest, lo[0] + 2 * np.pi - reach))
 
 
+def nearer_torso(points: np.ndarray, torso: np.ndarray, others: list[np.ndarray]) -> np.ndarray:
+    """(n,) bool: which points (n, 2) (x, z) [m] lie nearer the torso section's
+    points (k, 2) than any other loop of the body's section there (the arms)."""
+    from scipy.spatial import cKDTree
+
+    keep = np.ones(len(points), bool)
+    if not len(others) or not len(points):
+        return keep
+    d_t, _ = cKDTree(torso).query(points)
+    d_o, _ = cKDTree(np.vstack(others)).query(points)
+    return d_t <= d_o
+
+
 def girth_at(
-    x: np.ndarray, tris: np.ndarray, y: float, centre: np.ndarray | None = None, max_gap_deg: float = GAP_DEG
+    x: np.ndarray,
+    tris: np.ndarray,
+    y: float,
+    centre: np.ndarray | None = None,
+    max_gap_deg: float = GAP_DEG,
+    section: tuple[np.ndarray, list[np.ndarray]] | None = None,
 ) -> float | None:
     """Convex hull perimeter [m] of the garment's section at height y (every
     piece together: a tape round the outside); None where the garment does not
     reach y, or (given the body's ``centre`` (x, z) there) does not go round it:
     its section leaves an arc wider than ``max_gap_deg`` uncovered, seen from the
     centre (a hem or a waist edge that is not level cuts an arc, whose hull is no
-    girth; open seams of a few degrees are bridged, as a tape bridges them)."""
+    girth; open seams of a few degrees are bridged, as a tape bridges them).
+    ``section``: the body's torso loop and other loops at y (``body_sections``):
+    only the cloth nearer the torso than the arms counts (``nearer_torso``),
+    and it must go round the torso by itself (a sleeve is no bust ease)."""
     from scipy.spatial import ConvexHull, QhullError
 
     segs = section_segments(x, tris, y)
+    if section is not None and len(segs):
+        segs = segs[nearer_torso(segs.mean(axis=1), *section)]
     if len(segs) < 2:
         return None
     if centre is not None and np.degrees(uncovered_angle(segs, centre)) > max_gap_deg:
@@ -162,6 +191,28 @@ def girth_at(
     except QhullError:
         return None
     return float(np.linalg.norm(Q[v] - np.roll(Q[v], 1, axis=0), axis=1).sum())
+
+
+def body_sections(body: str, heights: dict[str, float]) -> dict[str, tuple[np.ndarray, list[np.ndarray]] | None]:
+    """Per landmark height, the body's torso section (its loop's points (k, 2),
+    (x, z) [m]) and each other loop there (the arms); None where the body has
+    no torso section."""
+    from couture.bodies.measure import Slicer
+    from couture.cloth.body import load_mannequin_mesh
+
+    s = Slicer(*load_mannequin_mesh(body))
+    out: dict[str, tuple[np.ndarray, list[np.ndarray]] | None] = {}
+    for k, y in heights.items():
+        sec = s.torso(y)
+        if sec is None:
+            out[k] = None
+            continue
+        loops = [P[:, [0, 2]] for _, P in s.loops(y)]
+        # the torso's loop: the one its hull's points came from
+        ti = int(np.argmin([np.min(np.linalg.norm(Q[:, None] - sec.points[None, :1], axis=2)) for Q in loops]))
+        rest = [Q for i, Q in enumerate(loops) if i != ti]
+        out[k] = (loops[ti], rest)
+    return out
 
 
 def body_centres(body: str, heights: dict[str, float]) -> dict[str, np.ndarray | None]:
@@ -240,7 +291,8 @@ def fit(
     touching = p > 0
     girths, heights = body_landmarks(body)
     centres = body_centres(body, heights)
-    garment = {k: girth_at(x, mesh.tris, heights[k], centres[k]) for k in LANDMARKS}
+    sections = body_sections(body, heights)
+    garment = {k: girth_at(x, mesh.tris, heights[k], centres[k], section=sections[k]) for k in LANDMARKS}
     ease: dict[str, float | None] = {}
     for k in LANDMARKS:
         g = garment[k]
