@@ -624,9 +624,10 @@ def _describe(d, tol: float) -> str:
     """One line for a level's final drape: state, residual, iterations, time, solver, why."""
     state = "converged" if d.converged else "NOT converged"
     why = f": {d.diagnosis}" if d.diagnosis else ""
+    built = f"; {d.x.numpy().shape[0]} vertices, terms {', '.join(d.terms)}" if d.terms else ""
     return (
         f"{state}, residual {d.residual:.2e} (tolerance {tol:.0e}) after {d.iterations} iterations in "
-        f"{d.wall_time_s:.1f} s ({d.solver}, {d.method}){why}"
+        f"{d.wall_time_s:.1f} s ({d.solver}, {d.method}{built}){why}"
     )
 
 
@@ -772,6 +773,8 @@ def drape(
                     "converged": d.converged,
                     "diagnosis": d.diagnosis,
                     "wall_time_s": d.wall_time_s,
+                    "vertices": int(d.x.numpy().shape[0]),
+                    "terms": list(d.terms),
                 },
                 indent=2,
             )

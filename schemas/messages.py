@@ -275,6 +275,11 @@ class DrapeMsg(Message, kw_only=True):
     """estimated distance of a prediction from the true equilibrium [m] (the
     largest vertex motion of one Newton correction); None when not computed.
     An optional field added within v1: older readers ignore it"""
+    terms: list[str] = []
+    """the energy terms the solver built for this drape's model (of membrane,
+    bending, gravity, seams, contact, friction: only what the design's scene
+    needs; [] for predictions and peers that do not say). An optional field
+    added within v1: older readers ignore it"""
     request_id: str = ""
     """solve request this drape answers, '' for bus-driven solves"""
     final: bool = True

@@ -59,9 +59,12 @@ def test_converged_drape_exits_0_and_keeps_logs_out_of_the_default_output(tmp_pa
     assert r.returncode == DrapeExit.CONVERGED, r.stderr[-3000:]
     meta = json.loads((tmp_path / "out" / "drape.json").read_text())
     assert meta["converged"] is True and meta["residual"] <= meta["tolerance"]
+    # what the solver built for the scene (the example skirt: on the mannequin, with friction)
+    assert meta["terms"] == ["membrane", "bending", "gravity", "seams", "contact", "friction"], meta["terms"]
+    assert 0.8 * 900 <= meta["vertices"] <= 1.5 * 900  # the fine level (target 900)
     assert (tmp_path / "out" / "drape.obj").stat().st_size > 0
     out = r.stdout + r.stderr
-    assert "[drape] fine: converged" in out
+    assert "[drape] fine: converged" in out and "terms membrane, bending, gravity, seams, contact, friction" in out
     # node lifecycle and library (ezdxf) logs go to nodes.log, not the terminal
     for chatter in (" INFO ", "ezdxf", "node remesher up", "started remesher"):
         assert chatter not in out, f"{chatter!r} in the default output:\n{out[-3000:]}"

@@ -226,6 +226,7 @@ def serve(
             mesh_generation=lm.mesh_generation,
             final=final,
             edit_id=service.tryon_op_id,
+            terms=list(getattr(lm.model, "terms", ())),
         )
 
     def should_abort() -> bool:
