@@ -79,7 +79,13 @@ def test_sloper_slider_change_publishes_design(session):
 
 
 def _drag(page, start, end, steps=8):
+    # hover first and let the page see it: a transform handle picks its axis on
+    # pointer hover, so a press that comes before the hover is processed (a busy
+    # machine) grabs nothing
+    page.mouse.move(start[0] - 2, start[1])
+    page.wait_for_timeout(150)
     page.mouse.move(*start)
+    page.wait_for_timeout(250)
     page.mouse.down()
     for k in range(1, steps + 1):
         f = k / steps
