@@ -145,6 +145,150 @@ def test_prediction_latency_10k_vertices():
 
 
 # --------------------------------------------------------------------------
+# consistent derivatives: columns checked against the other samples' values
+# --------------------------------------------------------------------------
+
+
+def stick_then_slip(n=4, seed=5):
+    """x(d) = x0 + B d exactly (the cloth slips from the first millimetre), while the
+    columns given at every sample are the stick response S (B's first column scaled
+    by 0.2, its second column right): derivatives wrong along d1, right along d2."""
+    rng = np.random.default_rng(seed)
+    x0 = rng.normal(size=(n, 3))
+    B = rng.normal(size=(n, 3, 2))
+    S = B.copy()
+    S[:, :, 0] *= 0.2
+    return S, lambda d: x0 + B @ np.asarray(d, float)
+
+
+def test_consistent_gmls_recovers_the_values_field_where_columns_are_wrong():
+    """Two samples 2.5 cm apart along d1, the columns 80 % short along d1: the relative
+    trapezoid defect is r = 0.8, so φ = r² / (r² + r₀²) of the way from plain GMLS to
+    the values' field (exact with r₀ → 0); across the samples' line the columns stay."""
+    S, field = stick_then_slip()
+    plain = GMLSCache(4, dtype=np.float64, consistent=False)
+    fixed = GMLSCache(4, dtype=np.float64)  # r₀ = 0.1
+    sharp = GMLSCache(4, dtype=np.float64, defect_scale=1e-9)
+    for d in [(0.0, 0.0), (0.025, 0.0)]:  # the press sample and one converged mid-edit sample
+        for c in (plain, fixed, sharp):
+            c.add(d, field(d), S)
+    phi = 0.8**2 / (0.8**2 + 0.1**2)
+    for d in [(0.05, 0.0), (0.05, 0.02), (-0.01, -0.03)]:
+        truth = field(d)
+        e_plain = plain.predict(d) - truth
+        assert np.abs(e_plain).max() > 0.1 * np.abs(truth - field((0.0, 0.0))).max(), d
+        assert np.allclose(fixed.predict(d) - truth, (1 - phi) * e_plain, rtol=0, atol=1e-12), d
+        assert np.abs(sharp.predict(d) - truth).max() < 1e-12, d
+
+
+def test_consistent_gmls_on_a_kink_beats_plain_gmls():
+    """1-D: slope 1 up to d = 0.01, slope 5 beyond; every sample's derivative is 1
+    (right before the kink, wrong after it). Samples at 0, 0.02, 0.03, query at 0.05."""
+    kink = 0.01
+
+    def x(d):
+        return np.array([[d + 4 * max(d - kink, 0.0), 0.0, 0.0]])
+
+    S = np.zeros((1, 3, 2))
+    S[0, 0, 0] = 1.0
+    errs = {}
+    for consistent in (False, True):
+        c = GMLSCache(1, dtype=np.float64, consistent=consistent)
+        for d in (0.0, 0.02, 0.03):
+            c.add((d, 0.0), x(d), S)
+        errs[consistent] = abs(c.predict((0.05, 0.0))[0, 0] - x(0.05)[0, 0])
+    assert errs[True] < 0.15 * errs[False], errs
+    assert errs[True] < 0.05 * x(0.05)[0, 0], errs
+
+
+def quadratic_samples(ds, seed=7):
+    """A field quadratic in d with its exact derivatives: the trapezoid identity holds."""
+    rng = np.random.default_rng(seed)
+    a, B, Q = rng.normal(size=(6, 3)), rng.normal(size=(6, 3, 2)), rng.normal(size=(6, 3, 2, 2))
+    Q = Q + Q.transpose(0, 1, 3, 2)
+
+    def x(d):
+        d = np.asarray(d, float)
+        return a + B @ d + 0.5 * np.einsum("nijk,j,k->ni", Q, d, d)
+
+    def s(d):
+        return B + np.einsum("nijk,k->nij", Q, np.asarray(d, float))
+
+    return [x(d) for d in ds], [s(d) for d in ds], x
+
+
+def test_consistent_gmls_keeps_exact_derivatives_of_a_quadratic():
+    ds = [(0.0, 0.0), (0.03, 0.01), (-0.02, 0.04), (0.05, -0.02), (0.01, 0.06)]
+    xs, Ss, _ = quadratic_samples(ds)
+    plain = GMLSCache(6, dtype=np.float64, consistent=False)
+    fixed = GMLSCache(6, dtype=np.float64)
+    for d, x, S in zip(ds, xs, Ss, strict=True):
+        plain.add(d, x, S)
+        fixed.add(d, x, S)
+    for d in [(0.02, 0.02), (0.08, 0.0), (-0.05, -0.05)]:
+        assert np.abs(fixed.predict(d) - plain.predict(d)).max() < 1e-12
+
+
+def test_consistent_coefficients_match_explicitly_corrected_columns():
+    """The coefficient form against the columns corrected explicitly (least-norm
+    least squares of the weighted trapezoid defects) and fed to plain GMLS; a first-order
+    sample beside zeroth-order ones, samples in general position."""
+    rng = np.random.default_rng(11)
+    n, M = 5, 5
+    D = rng.normal(scale=0.03, size=(M, 2))
+    X = rng.normal(size=(M, n, 3))
+    S = rng.normal(size=(M, n, 3, 2))
+    first = np.array([True, True, False, True, True])
+    F = np.flatnonzero(first)
+    pairs = [(m, k) for i, m in enumerate(F) for k in F[i + 1 :]]
+    A = np.zeros((len(pairs), 2 * len(F)))
+    b = np.zeros((len(pairs), n * 3))
+    for p, (m, k) in enumerate(pairs):
+        dd = D[k] - D[m]
+        h = np.linalg.norm(dd)
+        for idx in (m, k):
+            i = int(np.flatnonzero(F == idx)[0])
+            A[p, 2 * i : 2 * i + 2] = 0.5 * dd / h
+        defect = X[k] - X[m] - 0.5 * (S[m] + S[k]) @ dd
+        r2 = np.sum(defect**2) / np.sum((X[k] - X[m]) ** 2)
+        b[p] = r2 / (r2 + 0.1**2) * (defect / h).reshape(-1)
+    C = np.linalg.lstsq(A, b, rcond=None)[0]  # least-norm
+    S_fixed = S.copy()
+    for i, m in enumerate(F):
+        S_fixed[m] += np.moveaxis(C[2 * i : 2 * i + 2].reshape(2, n, 3), 0, -1)
+    ref = GMLSCache(n, dtype=np.float64, consistent=False, max_active=M)
+    new = GMLSCache(n, dtype=np.float64, max_active=M)
+    for m in range(M):
+        ref.add(D[m], X[m], S_fixed[m] if first[m] else None)
+        new.add(D[m], X[m], S[m] if first[m] else None)
+    for d in rng.normal(scale=0.05, size=(4, 2)):
+        assert np.abs(new.predict(d) - ref.predict(d)).max() < 1e-9
+        assert np.abs(new.predict(d, "mls") - ref.predict(d, "mls")).max() == 0.0
+
+
+def test_pair_defects_follow_the_samples_in_the_cache():
+    """A pair's defect is computed when its second sample arrives and forgotten with
+    either sample (eviction, clear); bad defect scales are refused."""
+    S, field = stick_then_slip(n=50)
+    c = GMLSCache(50, max_samples=3)
+    for k in range(5):
+        if len(c):
+            c.predict((0.01 * k, 0.0))  # the pointer moves along: evicts the oldest
+        c.add((0.01 * k, 0.0), field((0.01 * k, 0.0)), S)
+        live = {s.uid for s in c.samples}
+        assert all(a in live and b in live for a, b in c._pair_defect)
+        assert len(c._pair_defect) == len(live) * (len(live) - 1) // 2
+        for dn, xn in c._pair_defect.values():
+            assert np.sqrt(dn / xn) == pytest.approx(0.8, rel=1e-5)  # float32 rows
+    c.add((0.1, 0.0), field((0.1, 0.0)))  # zeroth order: no pairs
+    assert len(c._pair_defect) <= 1
+    c.clear()
+    assert not c._pair_defect
+    with pytest.raises(ValueError, match="defect_scale"):
+        GMLSCache(5, defect_scale=0.0)
+
+
+# --------------------------------------------------------------------------
 # 3D drag (SC §4.1)
 # --------------------------------------------------------------------------
 

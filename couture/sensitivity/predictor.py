@@ -89,6 +89,8 @@ class Predictor:
         model_at=default_model_at,
         factor_kwargs: dict | None = None,
         friction: bool = True,
+        consistent: bool = True,
+        defect_scale: float = 0.1,
     ):
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}")
@@ -101,7 +103,11 @@ class Predictor:
             d_scale=d_scale,
             max_active=max_active,
             dtype=dtype,
+            consistent=consistent,
+            defect_scale=defect_scale,
         )
+        """``consistent``, ``defect_scale``: GMLS with columns corrected to agree with the
+        cached drapes (``couture.sensitivity.gmls.consistent_derivatives``)"""
         self.error_estimate = error_estimate
         self.model_at = model_at
         self.factor_kwargs = factor_kwargs or {}
