@@ -179,6 +179,14 @@ def test_consistent_gmls_recovers_the_values_field_where_columns_are_wrong():
         assert np.abs(e_plain).max() > 0.1 * np.abs(truth - field((0.0, 0.0))).max(), d
         assert np.allclose(fixed.predict(d) - truth, (1 - phi) * e_plain, rtol=0, atol=1e-12), d
         assert np.abs(sharp.predict(d) - truth).max() < 1e-12, d
+    fixed.defect_scale = 1e-9  # the kept operator follows the scale
+    assert np.abs(fixed.predict((0.05, 0.02)) - field((0.05, 0.02))).max() < 1e-12
+    # and the samples: a third one off the line (the least-norm correction is no longer
+    # the true one, all columns being equally wrong, but it stays close)
+    for c in (fixed, plain):
+        c.add((0.04, 0.01), field((0.04, 0.01)), S)
+    e_fixed = np.abs(fixed.predict((0.05, 0.02)) - field((0.05, 0.02))).max()
+    assert 1e-12 < e_fixed < 0.05 * np.abs(plain.predict((0.05, 0.02)) - field((0.05, 0.02))).max()
 
 
 def test_consistent_gmls_on_a_kink_beats_plain_gmls():

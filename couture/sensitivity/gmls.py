@@ -40,9 +40,10 @@ and keep their components across them. The correction is a change of the
 coefficients, so prediction reads the same rows as before; the defects are
 computed when a sample is added.
 
-Evaluation is a 3×3 solve (plus, with consistent derivatives, a pseudo-inverse
-of at most 15×12 over the active samples' pairs) and one weighted sum of a few
-(3n,) rows (``predict`` reads at most ``max_active`` samples, nearest first).
+Evaluation is a 3×3 solve (plus, with consistent derivatives, O(M²) to fold
+the correction in; its pseudo-inverse, at most 15×12, is made once per set of
+active samples) and one weighted sum of a few (3n,) rows (``predict`` reads
+at most ``max_active`` samples, nearest first).
 """
 
 from __future__ import annotations
@@ -161,6 +162,15 @@ def consistent_derivatives(D, has_first, phi, c0, c1):
     coefficients c0 (M,) (on x^m) and c1 (M, 2) (on s^m) of the same rows:
     for each pair q = (m, k), g_q = φ_q Σ c1 · A⁺[:, q] / |Δd_q| adds g_q to
     c0[k], -g_q to c0[m] and -½ g_q Δd_q to c1[m] and c1[k]."""
+    K, pm, pk = consistency_operator(D, has_first, phi)
+    fold_consistency(D, K, pm, pk, c0, c1)
+
+
+@njit(cache=True)
+def consistency_operator(D, has_first, phi):
+    """The query-independent part of :func:`consistent_derivatives` for samples at
+    D (M, 2): (K (P, M, 2), pm (P,), pk (P,)) over the P first-order pairs (pm < pk),
+    with g_q = Σ c1 · K[q] (K = φ_q A⁺ / |Δd_q|, zero for coincident samples)."""
     M = D.shape[0]
     idx = np.full(M, -1, np.int64)
     F = 0
@@ -168,12 +178,13 @@ def consistent_derivatives(D, has_first, phi, c0, c1):
         if has_first[m]:
             idx[m] = F
             F += 1
-    if F < 2:
-        return
     P = F * (F - 1) // 2
+    K = np.zeros((P, M, 2))
+    pm = np.zeros(P, np.int64)
+    pk = np.zeros(P, np.int64)
+    if P == 0:
+        return K, pm, pk
     A = np.zeros((P, 2 * F))
-    pm = np.empty(P, np.int64)
-    pk = np.empty(P, np.int64)
     h = np.zeros(P)
     scale = 0.0
     for m in range(M):
@@ -199,15 +210,28 @@ def consistent_derivatives(D, has_first, phi, c0, c1):
             q += 1
     Ap = np.linalg.pinv(A, 1e-10)  # (2F, P)
     for q in range(P):
-        m, k = pm[q], pk[q]
-        w = phi[m, k]
+        w = phi[pm[q], pk[q]]
         if h[q] == 0.0 or w == 0.0:
             continue
-        g = 0.0
         for i in range(M):
             if has_first[i]:
-                g += c1[i, 0] * Ap[2 * idx[i], q] + c1[i, 1] * Ap[2 * idx[i] + 1, q]
-        g *= w / h[q]
+                K[q, i, 0] = w * Ap[2 * idx[i], q] / h[q]
+                K[q, i, 1] = w * Ap[2 * idx[i] + 1, q] / h[q]
+    return K, pm, pk
+
+
+@njit(cache=True)
+def fold_consistency(D, K, pm, pk, c0, c1):
+    """c0, c1 (in place) += the consistency correction with operator K (see
+    :func:`consistency_operator`); O(P M) per query."""
+    M = c1.shape[0]
+    for q in range(K.shape[0]):
+        g = 0.0
+        for i in range(M):
+            g += c1[i, 0] * K[q, i, 0] + c1[i, 1] * K[q, i, 1]
+        if g == 0.0:
+            continue
+        m, k = pm[q], pk[q]
         dd0 = D[k, 0] - D[m, 0]
         dd1 = D[k, 1] - D[m, 1]
         c0[k] += g
@@ -288,6 +312,7 @@ class GMLSCache:
         """r₀ of :func:`defect_weight`: the relative trapezoid defect at which half of
         it is charged to the columns"""
         self._pair_defect: dict[tuple[int, int], tuple[float, float]] = {}
+        self._operator: tuple | None = None
         self._uid = 0
         self.samples: list[Sample] = []
         self._row_bytes = 3 * self.n * self.dtype.itemsize
@@ -412,7 +437,11 @@ class GMLSCache:
         c1 = np.empty((M, 2))
         gmls_coefficients(d, D, first, self.eps2, self.d_scale, self.ridge, c0, c1)
         if method == "gmls" and self.consistent:
-            consistent_derivatives(D, first, self.pair_weights(ss), c0, c1)
+            # the operator depends on the active samples only: kept while they stay
+            key = (tuple(s.uid for s in ss), tuple(first.tolist()), self.defect_scale)
+            if self._operator is None or self._operator[0] != key:
+                self._operator = (key, *consistency_operator(D, first, self.pair_weights(ss)))
+            fold_consistency(D, *self._operator[1:], c0, c1)
         return ss, c0, c1
 
     def pair_weights(self, ss: list[Sample]) -> np.ndarray:
