@@ -238,8 +238,9 @@ def _parser() -> argparse.ArgumentParser:
         type=int,
         default=0,
         metavar="N",
-        help="after the fixed point, up to N Gauss-Newton steps with couture's design sensitivity (each "
-        "re-simulated on the solver nodes, kept only if it lowers the Hausdorff distance); default 0",
+        help="after the fixed point, up to N Gauss-Newton steps on the distance to the target and the drape's "
+        "stretch, with couture's design sensitivity (each re-simulated on the solver nodes, kept only if it lowers "
+        "the Hausdorff distance and keeps the mean stretch >= 0.98); default 0",
     )
     add_bus_args(ad)
 
