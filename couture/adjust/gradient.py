@@ -74,6 +74,8 @@ def jacobian(mesh: GarmentMesh, design, X: np.ndarray, x: np.ndarray) -> np.ndar
     n = mesh.n_vertices
     model = ClothModel(with_rest(mesh, X), design.fabric, scene_from_design(design))
     fac = SensitivityFactor(model, x, check=False)
+    if fac.dfdx is None:
+        raise RuntimeError("the sensitivity factor built no dF/dX (a model without the rest-shape derivative)")
     out = np.zeros((3 * n, 2 * n))
     out[fac.dofs] = fac.solve_free(fac.dfdx.J.toarray())
     return out

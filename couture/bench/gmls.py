@@ -94,7 +94,7 @@ def latency_full_cache(n: int, repeats: int, max_active: int = 6) -> dict:
     rng = np.random.default_rng(0)
     x0 = rng.normal(size=(n, 3))
     S = rng.normal(size=(n, 3, 2))
-    out = {"vertices": n, "samples": max_active}
+    out: dict[str, float] = {"vertices": n, "samples": max_active}
     for name, consistent in (("gmls_plain", False), ("gmls", True), ("mls", True)):
         c = GMLSCache(n, consistent=consistent, max_active=max_active)
         for k in range(max_active):

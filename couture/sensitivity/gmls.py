@@ -441,7 +441,8 @@ class GMLSCache:
             key = (tuple(s.uid for s in ss), tuple(first.tolist()), self.defect_scale)
             if self._operator is None or self._operator[0] != key:
                 self._operator = (key, *consistency_operator(D, first, self.pair_weights(ss)))
-            fold_consistency(D, *self._operator[1:], c0, c1)
+            _, K, pm, pk = self._operator
+            fold_consistency(D, K, pm, pk, c0, c1)
         return ss, c0, c1
 
     def pair_weights(self, ss: list[Sample]) -> np.ndarray:
