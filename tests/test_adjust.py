@@ -351,9 +351,9 @@ def test_gradient_step_objective_gradient_matches_finite_differences():
         assert g @ dX.ravel() == pytest.approx(fd, rel=1e-4)
     _, g0 = gauss_newton_system(J, x, x_t, edges, 0.0)
     _, g10 = gauss_newton_system(J, x, x_t, edges, 10.0)
-    fd_s = ((phi(xp, x_t, edges, 10.0) - phi(xp, x_t, edges, 0.0)) - (phi(xm, x_t, edges, 10.0) - phi(xm, x_t, edges, 0.0))) / (
-        2 * hX
-    )
+    fd_s = (
+        (phi(xp, x_t, edges, 10.0) - phi(xp, x_t, edges, 0.0)) - (phi(xm, x_t, edges, 10.0) - phi(xm, x_t, edges, 0.0))
+    ) / (2 * hX)
     assert abs(fd_s) > 1e-6
     assert (g10 - g0) @ dX.ravel() == pytest.approx(fd_s, rel=1e-4)
 
@@ -385,6 +385,7 @@ def test_gradient_step_with_stretch_term_approaches_a_reachable_target_keeping_s
     from couture.adjust.gradient import edge_lengths, mesh_edges
 
     e = mesh_edges(m.tris)
-    assert np.abs(edge_lengths(X1, e) - edge_lengths(X_t, e)).mean() < 0.5 * np.abs(
-        edge_lengths(m.X, e) - edge_lengths(X_t, e)
-    ).mean()
+    assert (
+        np.abs(edge_lengths(X1, e) - edge_lengths(X_t, e)).mean()
+        < 0.5 * np.abs(edge_lengths(m.X, e) - edge_lengths(X_t, e)).mean()
+    )
