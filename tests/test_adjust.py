@@ -263,26 +263,8 @@ def test_gradient_steps_jacobian_matches_finite_differences():
     """∂x/∂X of the equilibrium (couture.adjust.gradient.jacobian) against
     central differences of Newton solves, on a sheet hanging from two corners."""
     from couture.adjust.gradient import jacobian
-    from couture.cloth.model import ClothModel
-    from couture.solvers import get_solver
-    from couture.solvers.service import scene_from_design
-    from schemas.design import Design, SceneFlags
-    from tests.solver_testmodel import horizontal
 
-    m = horizontal(grid_sheet(0.3, 0.3, 7, 7), center=(0.15, 0.15))
-    top = np.nonzero(np.isclose(m.X[:, 1], 0.3))[0]
-    m.pinned = top[[np.argmin(m.X[top, 0]), np.argmax(m.X[top, 0])]].astype(np.int32)
-    design = Design(scene=SceneFlags(body=False, friction=False, seams=False))
-    newton = get_solver("newton")
-
-    def drape(X, x0):
-        from couture.adjust import with_rest
-
-        model = ClothModel(with_rest(m, X), design.fabric, scene_from_design(design))
-        r = newton.solve(model, x0, tol=1e-11, max_seconds=30)
-        assert r.converged
-        return r.x
-
+    m, design, drape = _hanging_sheet()
     x = drape(m.X, m.x0)
     J = jacobian(m, design, m.X, x)
     rng = np.random.default_rng(5)
