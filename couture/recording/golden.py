@@ -412,10 +412,16 @@ def polisher(recordings: dict[str, Path | str]):
         entry = tables.get(side, {}).get(key)
         out = None
         _, m, design = entry if entry is not None else (None, None, None)
-        if m is not None and design is not None:
+        if m is None or design is None:
+            # the comparison then falls back to the recorded residuals: say why
+            what = "the drape" if entry is None else "its mesh" if m is None else "its mesh's pattern message"
+            log.warning("%s (%s): not polished: %s is not in the recording", key, side, what)
+        else:
             model = ClothModel(msg_to_mesh(m), design.fabric, scene_from_design(design))
             x = drape.x.numpy().astype(np.float64)
-            if x.shape == model.mesh.x0.shape:
+            if x.shape != model.mesh.x0.shape:
+                log.warning("%s (%s): not polished: x %s on a mesh of %s", key, side, x.shape, model.mesh.x0.shape)
+            else:
                 r = get_solver("newton").solve(
                     model, x, tol=POLISH_TOL, max_iters=200, max_seconds=600.0, friction_after=math.inf
                 )
