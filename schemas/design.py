@@ -9,7 +9,7 @@ coordinates), so they survive sloper parameter changes.
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import msgspec
 
@@ -84,6 +84,10 @@ class SceneFlags(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     contact_stiffness_scale: StiffnessScale = 1.0
     """dimensionless factor on the default body contact stiffness
     (``couture.cloth.model.CONTACT_STIFFNESS_PER_MU`` x mu)"""
+    friction_model: Literal["anchors", "huber"] = "anchors"
+    """how friction enters the equilibrium (``couture.cloth.model.Scene.friction_model``):
+    'anchors', springs that slip in events; 'huber', one smooth elasto-plastic
+    potential with lagged Coulomb limits, carried from the coarse level to the fine one"""
 
 
 class Resolution(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):

@@ -48,6 +48,21 @@ def drape(name, vertices=400):
     return design, res, model, r.x
 
 
+def finish_newton(model, x):
+    """x after one more Newton step with the exact Hessian (anchors as they are): a
+    re-solve stops at its tolerance somewhere along the soft modes (a garment turning
+    about the body, held only by anchors), and on some equilibria that error divided
+    by 2h is most of the difference quotient (measured: 0.6 % on the skirt's waist
+    ease); after the step it is second order in the residual."""
+    import scipy.sparse.linalg as spla
+
+    free = model.free_dofs
+    K = model.stiffness(x, project=False)[free][:, free].tocsc()
+    dx = np.zeros(3 * model.n)
+    dx[free] = spla.spsolve(K, model.forces(x).ravel()[free])
+    return x + dx.reshape(-1, 3)
+
+
 def fd_check(design, res, model, x, param, h=1e-6):
     """(relative error of the node's column vs the central difference, of a
     frictionless linearisation vs it, the node's FactorInfo)."""
@@ -72,7 +87,7 @@ def fd_check(design, res, model, x, param, h=1e-6):
         r = newton.solve(m, x.copy(), tol=1e-9, max_seconds=30)
         assert r.converged, r.diagnosis
         slipped.append(int(r.stats["slipped"]))
-        xs.append(r.x)
+        xs.append(finish_newton(m, r.x))
     assert slipped == [0, 0], f"{param} ±{h:g}: anchors slipped {slipped} (a stick/slip switch: not one branch)"
     fd = (xs[0] - xs[1]) / (2 * h)
     assert np.abs(fd).max() > 1e-2
@@ -109,6 +124,7 @@ CASES = [
 @pytest.mark.parametrize("garment,param,h", CASES)
 def test_node_columns_with_friction_match_resolves(garment, param, h, request):
     err, err_bare, info = fd_check(*request.getfixturevalue(garment), param, h)
+    print(f"{garment} {param}: error {err:.2e}")
     assert info.regularization == "none"  # well posed: nothing added
     assert err < 1e-3, err
     # linearising the frictionless model around the friction equilibrium (the
@@ -133,6 +149,13 @@ def test_friction_state_rebuilt_from_the_drape_is_the_solvers(garment, request):
     assert held.sticking == int(model.anchored.sum()) and held.max_ratio < 1.0
     s_held = SensitivityFactor(held_model, x).param_column(psi)
     assert np.linalg.norm(s_held - s_own) < 1e-3 * np.linalg.norm(s_own)
-    # the rebuilt state balances x as the solver's did (up to the normals: the
-    # contact normal at x rather than at the anchor's creation)
-    assert held_model.relative_residual(x) < 1e-5
+    # the rebuilt state balances x as the solver's did, up to the normals: the contact
+    # normal at x rather than at the anchor's creation, which tilts each anchor's force
+    # by the angle between them (how far the cloth turned on the body after its anchor
+    # was made depends on the path the solve took: bounded here from the normals)
+    on = model.anchored
+    cos = np.clip(np.einsum("ij,ij->i", own.anchor_normal[on], held_model.anchor_normal[on]), -1.0, 1.0)
+    tilt = np.linalg.norm(own.forces(x, ["friction"])[on], axis=1) * np.sqrt(1.0 - cos * cos)
+    allowed = own.relative_residual(x) + 2.0 * float(np.linalg.norm(tilt)) / own.residual_denominator(x)
+    print(f"{garment}: rebuilt residual {held_model.relative_residual(x):.2e}, allowed {allowed:.2e}")
+    assert held_model.relative_residual(x) < max(allowed, 1e-6)

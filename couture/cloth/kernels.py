@@ -891,3 +891,64 @@ def bspline_phi_grad(points, origin, spacing, values, phi, grad):
                 gy += wx[a] * dy[b] * sv
                 gz += wx[a] * wy[b] * sz
         _write_phi_grad(p, val, gx / spacing, gy / spacing, gz / spacing, extra2, dirx, phi, grad)
+
+
+@njit(cache=True)
+def huber_anchor_forces(x, anchored, anchor, normal, slip, limit, f):
+    """Elasto-plastic (Huber) friction potential per anchored vertex, of its
+    tangential displacement d = P (x - a) from the anchor (P = I - n nᵀ, n frozen
+    at the anchor): W = c/(2 s) |d|² while |d| <= s (sticking; s = ``slip`` [m],
+    the slide that mobilizes the whole limit), else c (|d| - s/2) (sliding: a
+    constant force c against d); c = ``limit[v]`` [N], the lagged Coulomb limit
+    mu_s f_n. C¹ and convex in x; f += -dW/dx; returns the sum of W."""
+    e = 0.0
+    for v in range(x.shape[0]):
+        if anchored[v]:
+            d0 = x[v, 0] - anchor[v, 0]
+            d1 = x[v, 1] - anchor[v, 1]
+            d2 = x[v, 2] - anchor[v, 2]
+            dn = d0 * normal[v, 0] + d1 * normal[v, 1] + d2 * normal[v, 2]
+            t0 = d0 - dn * normal[v, 0]
+            t1 = d1 - dn * normal[v, 1]
+            t2 = d2 - dn * normal[v, 2]
+            s = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+            c = limit[v]
+            k_t = c / slip
+            if s <= slip:
+                e += 0.5 * k_t * s * s
+                g = k_t
+            else:
+                e += c * (s - 0.5 * slip)
+                g = c / s
+            f[v, 0] -= g * t0
+            f[v, 1] -= g * t1
+            f[v, 2] -= g * t2
+    return e
+
+
+@njit(cache=True)
+def huber_anchor_stiffness(x, anchored, anchor, normal, slip, limit, diag_slots, blk_base, blk_stride, data):
+    """d²W/dx² of ``huber_anchor_forces`` (PSD): (c/s) P sticking; (c/|d|)(P - u uᵀ)
+    sliding, u = d/|d| (no stiffness along the slide, c/|d| across it)."""
+    for v in range(anchored.shape[0]):
+        if anchored[v]:
+            d = np.empty(3)
+            for i in range(3):
+                d[i] = x[v, i] - anchor[v, i]
+            dn = d[0] * normal[v, 0] + d[1] * normal[v, 1] + d[2] * normal[v, 2]
+            for i in range(3):
+                d[i] -= dn * normal[v, i]
+            s = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            c = limit[v]
+            k_t = c / slip
+            slide = s > slip
+            g = c / s if slide else k_t
+            sl = diag_slots[v]
+            base = blk_base[sl]
+            st = blk_stride[sl]
+            for i in range(3):
+                for j in range(3):
+                    h = g * ((1.0 if i == j else 0.0) - normal[v, i] * normal[v, j])
+                    if slide:
+                        h -= g * d[i] * d[j] / (s * s)
+                    data[base + i * st + j] += h

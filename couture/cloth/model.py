@@ -116,6 +116,17 @@ class Scene:
     """[N/m] tangential anchor springs; None: the contact stiffness"""
     project_membrane: bool = True
     """PSD projection of the membrane Hessian in compression"""
+    friction_model: str = "anchors"
+    """'anchors': tangential springs that slip in events (kinetic friction as a
+    constant force, re-stuck at a balance; ``slip_friction``); 'huber': an
+    elasto-plastic potential of each anchored vertex's tangential displacement
+    from its anchor (k_t/2 |d|² up to the Coulomb limit c = mu_s f_n, then c |d|:
+    ``kernels.huber_anchor_forces``), C¹ and convex, with c lagged (set when the
+    anchor is made, refreshed at a balance by ``lag_friction``): no slip events,
+    one smooth energy every solver minimizes"""
+    friction_slip: float = 1e-3
+    """[m] 'huber' friction: the tangential displacement from its anchor at which a
+    vertex's friction reaches its Coulomb limit (its stiffness is limit/slip below)"""
 
 
 def lame_parameters(stretch_stiffness: float, poisson_ratio: float) -> tuple[float, float]:
@@ -287,6 +298,12 @@ class ClothModel:
         self.friction_stiffness = (
             scene.friction_stiffness if scene.friction_stiffness is not None else self.contact_stiffness
         )
+        if scene.friction_model not in ("anchors", "huber"):
+            raise ValueError(f"Scene.friction_model {scene.friction_model!r}: use 'anchors' or 'huber'")
+        self.friction_model = scene.friction_model
+        self.friction_slip = float(scene.friction_slip)
+        if not (np.isfinite(self.friction_slip) and self.friction_slip > 0):
+            raise ValueError(f"Scene.friction_slip {scene.friction_slip!r}: a positive length [m]")
         self.friction_static = float(getattr(fabric, "friction_static", 0.5))
         self.friction_kinetic = float(getattr(fabric, "friction_kinetic", 0.3))
 
@@ -316,6 +333,8 @@ class ClothModel:
             self.anchor_normal = np.zeros((self.n, 3))
             self.slipping = np.zeros(self.n, bool)
             self.slip_force = np.zeros((self.n, 3))
+            self.friction_limit = np.zeros(self.n)
+            """[N] lagged Coulomb limit mu_s f_n per anchor ('huber')"""
 
         self.set_rest_positions(mesh.X)
 
@@ -436,7 +455,11 @@ class ClothModel:
         if "contact" in terms:
             phi, grad = self._contact(x)
             e += K.contact_forces(phi, grad, self.contact_offset, self.contact_stiffness, self.contact_smoothing, f)
-        if "friction" in terms:
+        if "friction" in terms and self.friction_model == "huber":
+            e += K.huber_anchor_forces(
+                x, self.anchored, self.anchor, self.anchor_normal, self.friction_slip, self.friction_limit, f
+            )
+        elif "friction" in terms:
             e += K.anchor_forces(x, self.anchored, self.anchor, self.anchor_normal, self.friction_stiffness, f)
             if self.slipping.any():
                 # kinetic friction on slipping vertices: a constant force, potential -f.x
@@ -495,7 +518,20 @@ class ClothModel:
                 p.blk_stride,
                 data,
             )
-        if "friction" in terms_:
+        if "friction" in terms_ and self.friction_model == "huber":
+            K.huber_anchor_stiffness(
+                x,
+                self.anchored,
+                self.anchor,
+                self.anchor_normal,
+                self.friction_slip,
+                self.friction_limit,
+                self.diag_slots,
+                p.blk_base,
+                p.blk_stride,
+                data,
+            )
+        elif "friction" in terms_:
             K.anchor_stiffness(
                 self.anchored,
                 self.anchor_normal,
@@ -571,7 +607,7 @@ class ClothModel:
         slipped. Why not re-anchor at the kinetic limit (``update_friction``): with
         a spring 5000x stiffer than the cloth the re-balanced cloth pushes the
         anchor past mu_s again after a micrometre, and the rounds creep without end."""
-        if "friction" not in self.terms or not self.anchored.any():
+        if "friction" not in self.terms or not self.anchored.any() or self.friction_model == "huber":
             return 0
         x = np.ascontiguousarray(x, dtype=np.float64)
         idx = np.nonzero(self.anchored)[0]
@@ -684,6 +720,7 @@ class ClothModel:
             self.sliding[:] = False
             self.slipping[:] = False
             self.slip_force[:] = 0.0
+            self.friction_limit[:] = 0.0
 
     def update_friction(self, x: np.ndarray) -> dict:
         """Move, create or release friction anchors (Hasegawa 2003); no-op without friction.
@@ -699,6 +736,15 @@ class ClothModel:
         if "friction" not in self.terms:
             return {"anchored": 0, "sliding": 0, "created": 0, "released": 0}
         x = np.ascontiguousarray(x, dtype=np.float64)
+        if self.friction_model == "huber":
+            before = int(self.anchored.sum())
+            released = self.lag_friction(x)[1]
+            return {
+                "anchored": int(self.anchored.sum()),
+                "sliding": 0,
+                "created": int(self.anchored.sum()) - before + released,
+                "released": released,
+            }
         self.stick_slipping(x)
         phi, grad = self._contact(x)
         pen = self.contact_offset - phi
@@ -736,6 +782,30 @@ class ClothModel:
             "created": int(created.sum()),
             "released": int(released.sum()),
         }
+
+    def lag_friction(self, x: np.ndarray) -> tuple[float, int]:
+        """'huber' friction: refresh the lagged state at x. Vertices in contact without
+        an anchor get one where they are (no force); anchors whose vertex left the
+        offset layer let go; every anchor's limit becomes mu_s f_n at x. Anchors never
+        move: the potential measures the slide from where the vertex first rested.
+        Returns (the largest change of a friction force it caused [N], how many
+        anchors let go)."""
+        if "friction" not in self.terms or self.friction_model != "huber":
+            return 0.0, 0
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        f_old = self.forces(x, ["friction"])
+        phi, grad = self._contact(x)
+        pen = self.contact_offset - phi
+        contact = pen > 0.0
+        gone = self.anchored & ~contact
+        self.anchored[gone] = False
+        new = contact & ~self.anchored
+        self.anchor[new] = x[new]
+        self.anchor_normal[new] = grad[new] / np.maximum(np.linalg.norm(grad[new], axis=1), 1e-300)[:, None]
+        self.anchored[new] = True
+        self.friction_limit[:] = np.where(self.anchored, self.friction_static * self.contact_normal_force(pen), 0.0)
+        f_new = self.forces(x, ["friction"])
+        return float(np.max(np.linalg.norm(f_new - f_old, axis=1), initial=0.0)), int(gone.sum())
 
     def dforces_dX(self, x: np.ndarray, dX: np.ndarray, terms=None) -> np.ndarray:
         """d forces(x; X + e dX)/de at e = 0, shape (n, 3) [N per unit e].

@@ -10,6 +10,7 @@ can publish drape/coarse, then drape/fine.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -224,6 +225,39 @@ def polish_prolongated(
     return x
 
 
+def carry_friction(fine_model, coarse_model, parent_tri: np.ndarray, bary: np.ndarray, x_fine: np.ndarray) -> int:
+    """Carry the coarse level's friction state to the fine level ('huber' friction
+    only; a no-op otherwise): a fine vertex in contact at ``x_fine`` whose three
+    coarse parent vertices are all anchored gets the barycentric mix of their
+    anchors, so the fine level measures each vertex's slide from where the coarse
+    level first held the cloth instead of releasing friction and settling the
+    fine discretization's lift frictionless (whose end, the state where
+    friction engaged again, the solver's path decided). Other fine vertices in
+    contact are anchored where they are; the Coulomb limits are set from the fine
+    contact forces at ``x_fine`` (``ClothModel.lag_friction``). Returns how many
+    anchors were carried."""
+    if (
+        getattr(fine_model, "friction_model", "") != "huber"
+        or getattr(coarse_model, "friction_model", "") != "huber"
+        or "friction" not in fine_model.terms
+        or "friction" not in coarse_model.terms
+        or not coarse_model.anchored.any()
+    ):
+        return 0
+    verts = coarse_model.mesh.tris[np.asarray(parent_tri)]
+    held = coarse_model.anchored[verts].all(axis=1)
+    phi, grad = fine_model.body.phi_grad(np.ascontiguousarray(x_fine, dtype=np.float64))
+    carried = held & (phi < fine_model.contact_offset) & np.asarray(fine_model.free, bool)
+    fine_model.release_friction()
+    a = np.einsum("nk,nkd->nd", np.asarray(bary, np.float64), coarse_model.anchor[verts])
+    fine_model.anchor[carried] = a[carried]
+    g = grad[carried]
+    fine_model.anchor_normal[carried] = g / np.maximum(np.linalg.norm(g, axis=1), 1e-300)[:, None]
+    fine_model.anchored[carried] = True
+    fine_model.lag_friction(x_fine)
+    return int(carried.sum())
+
+
 def solve_cascadic(
     coarse_model,
     fine_model,
@@ -256,9 +290,12 @@ def solve_cascadic(
     x_f = polish_prolongated(fine_model, x_raw, coarse_model, res_c.x, prolong.tri, prolong.bary)
     polish_s = time.perf_counter() - t0
     r_raw = float(fine_model.relative_residual(x_raw))
+    carried = carry_friction(fine_model, coarse_model, prolong.tri, prolong.bary, x_f)
     r0 = float(fine_model.relative_residual(x_f))
     remaining = max(1.0, max_seconds - res_c.wall_time - polish_s)
-    res_f = (fine_solver or solver).solve(fine_model, x_f, tol=tol_fine, max_seconds=remaining)
+    res_f = (fine_solver or solver).solve(
+        fine_model, x_f, tol=tol_fine, max_seconds=remaining, friction_after=math.inf if carried else None
+    )
     res_f.stats["prolongation_residual"] = r0
     res_f.stats["prolongation_residual_raw"] = r_raw
     res_f.stats["polish_s"] = polish_s

@@ -360,12 +360,19 @@ class FrictionSchedule:
         self.model.update_friction(x)
         self.on = True
 
-    def after_step(self, it: int, x: np.ndarray, r: float, crawling: bool) -> bool:
-        """Between iterations; True when the forces changed."""
+    def after_step(self, it: int, x: np.ndarray, r: float, crawling: bool, stuck: bool = False) -> bool:
+        """Between iterations; True when the forces changed. ``crawling``: the residual
+        has not halved over the solver's window while below 1; ``stuck``: the same at
+        any residual. With 'huber' friction a stuck solve engages friction: cloth that
+        slides off the body it landed on (a sheet falling onto a sphere, nothing
+        pinned, residual about 1 as it goes) never balances without it, and the
+        smooth potential adds no slip events to pay for engaging early. The slip-event
+        anchors keep the crawl rule (below 1) that garment drapes were measured with."""
         if not self.present:
             return False
         if not self.on:
-            if r <= self.after or crawling:
+            smooth = getattr(self.model, "friction_model", "anchors") == "huber"
+            if r <= self.after or crawling or (stuck and smooth):
                 self.engage(x)
                 return True
             return False
@@ -388,6 +395,12 @@ class FrictionSchedule:
             return False
         self.checks += 1
         m = self.model
+        if getattr(m, "friction_model", "anchors") == "huber":
+            # lagged limits refreshed where the cloth now rests; a balance holds when
+            # that changes no friction force by more than the allowance
+            change, released = m.lag_friction(x)
+            self.excess = float(m.friction_excess(x))
+            return released > 0 or change > self.allowance
         changed = bool(m.stick_slipping(x)) | bool(m.refresh_contacts(x))
         self.excess = float(m.friction_excess(x))
         if self.excess > self.allowance:

@@ -295,8 +295,10 @@ class KineticSolver:
             history.append((now, r))
             recent.append(r)
             # a crawl (the residual has not halved in crawl_window steps, near rest): a
-            # garment sliding or turning on the body, which friction stops
-            crawling = len(recent) > self.crawl_window and r > 0.5 * recent[-1 - self.crawl_window] and r < 1.0
+            # garment sliding or turning on the body, which friction stops; stuck at any
+            # residual: also cloth sliding off the body it landed on (r about 1)
+            stuck = len(recent) > self.crawl_window and r > 0.5 * recent[-1 - self.crawl_window]
+            crawling = stuck and r < 1.0
             tf = time.perf_counter()
             if fric is None:
                 fric = FrictionSchedule(
@@ -309,7 +311,7 @@ class KineticSolver:
                 )
                 changed = fric.present
             else:
-                changed = fric.after_step(it, x, r, crawling)
+                changed = fric.after_step(it, x, r, crawling, stuck)
             if changed:
                 watch.restart(it)
                 E, f = energy_and_forces(model, x)

@@ -451,13 +451,12 @@ class NewtonSolver:
             # turning on the body, a fold rolling) that the projected Hessian, stiffer than
             # the true one along it, follows in tiny steps: turn to the true Hessian, and
             # let friction hold the cloth where it is if the scene has friction
-            crawling = (
-                len(recent) > self.crawl_window and r > 0.5 * recent[-1 - self.crawl_window] and r < self.true_until
-            )
+            stuck = len(recent) > self.crawl_window and r > 0.5 * recent[-1 - self.crawl_window]
+            crawling = stuck and r < self.true_until
             if crawling and not true_mode:
                 true_mode = True
                 stats["crawl_switches"] = stats.get("crawl_switches", 0) + 1
-            if fric.after_step(it, x, r, crawling):
+            if fric.after_step(it, x, r, crawling, stuck):
                 watch.restart(it)
                 f = model.forces(x)
                 r = res_scale(x, f)

@@ -52,7 +52,7 @@ from couture.pattern.errors import PatternError
 from couture.pattern.limits import check_simulation_values
 from couture.solvers import get_solver
 from couture.solvers.base import SolveResult
-from couture.solvers.cascadic import polish_prolongated
+from couture.solvers.cascadic import carry_friction, polish_prolongated
 from couture.tryon import TryOn
 from schemas.design import Design
 
@@ -109,6 +109,7 @@ def scene_from_design(design: Design) -> Scene:
         friction=bool(flags.friction and flags.body),
         seam_stiffness=seam,
         contact_stiffness=contact,
+        friction_model=flags.friction_model,
     )
 
 
@@ -297,7 +298,9 @@ class SolveService:
             parent, bary = self.prolongation
             coarse = self.levels["coarse"]
             x = np.einsum("nk,nkd->nd", bary, coarse_x[coarse.mesh.tris[parent]])
-            return polish_prolongated(lm.model, x, coarse.model, coarse_x, parent, bary), "prolongated"
+            x = polish_prolongated(lm.model, x, coarse.model, coarse_x, parent, bary)
+            carry_friction(lm.model, coarse.model, parent, bary, x)
+            return x, "prolongated"
         return lm.mesh.x0, "placement"
 
     def run(
@@ -326,7 +329,9 @@ class SolveService:
                     on_progress(level, it, x, res)
                 return False
 
-            at_once = how in self.friction_at_once or (how in ("prediction", "previous") and carries_anchors(lm.model))
+            at_once = how in self.friction_at_once or (
+                how in ("prediction", "previous", "prolongated") and carries_anchors(lm.model)
+            )
             result = self.solver.solve(
                 lm.model,
                 x0,
