@@ -774,13 +774,16 @@ def drape(
         if bus.connect:
             cfg = bus
         else:
-            # no sensitivity node: a one-shot drape makes no predictions, and its
-            # refactorizations would take CPU from the solve
-            nodes = [n for n in supervisor.default_nodes(solvers=[solver], ui=False) if n.name != "sensitivity"]
+            # the default graph without sensitivity (a one-shot drape makes no predictions,
+            # and its refactorizations would take CPU from the solve), adjust and ui
+            from couture.graph import load_graph
+
+            graph = load_graph().with_solvers([solver])
+            for kind in ("sensitivity", "adjust", "ui"):
+                graph = graph.without(kind)
             if solver_max_seconds is not None:
-                for n in nodes:
-                    if n.module == "nodes.solver":
-                        n.args += ["--max-seconds", str(solver_max_seconds)]
+                graph.set("solver", "max_seconds", repr(float(solver_max_seconds)))
+            nodes = supervisor.graph_nodes(graph)
             child_log = None
             if not verbose:
                 out_dir.mkdir(parents=True, exist_ok=True)
