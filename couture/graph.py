@@ -28,7 +28,9 @@ Config, a value of the wrong type or out of its choices. Every node also
 gives ``status/<its name>`` (the bus does it), so ``status/*`` is not listed.
 
 A node's command line is made from its config with the Config's own flags
-(:mod:`couture.bus.nodeargs`): the graph holds values, never flags.
+(:mod:`couture.bus.nodeargs`): the graph holds values, never flags. A path
+in a config (the UI's ``design``, ``export_dir``) is taken as a command line
+would take it: relative to the directory ``couture up`` runs in.
 
 The kinds' Config classes are read from ``nodes.<kind>.main`` by name, the way
 the supervisor starts ``python -m nodes.<kind>``: nodes are plugins the data
@@ -233,6 +235,8 @@ class Graph:
     def check(self) -> None:
         """Raise GraphError listing every problem (see the module's docstring)."""
         errors = []
+        names = [n.name for n in self.nodes]
+        errors += [f"node {x}: named twice" for x in sorted({x for x in names if names.count(x) > 1})]
         for n in self.nodes:
             errors += _check_node(self, n)
         given = {t for n in self.nodes for t in [*n.gives, STATUS]} | set(self.clients_give)

@@ -86,6 +86,7 @@ def test_up_flags_adjust_the_graph():
         (["--set", "nobody.port=3"], ["no node or kind 'nobody'"]),
         (["--set", "ui-port"], ["is not NODE.KEY=VALUE"]),
         (["--only", "solvers"], ["--only solvers: not a node kind"]),
+        (["--solver", "newton", "newton"], ["node solver-newton: named twice"]),
         (["--only", "recorder"], ["recorder: no such node here (the recorder needs --record FILE)"]),
         (["--machine", "b"], ["--machine b: no such machine", "declared: none"]),
         (["--graph", str(TWO_MACHINES)], ["say which one this is with --machine NAME", "a, b"]),
