@@ -318,7 +318,7 @@ def test_every_config_field_round_trips_through_its_command_line(kind):
 
 
 def test_a_file_field_is_read_from_its_path(tmp_path):
-    from couture.pattern.io import load_design
+    from couture.client import load_design
 
     cls = KINDS["ui"].config_class()
     src = ROOT / "recordings"

@@ -59,7 +59,7 @@ log = logging.getLogger("couture.ui.node")
 
 
 def _load_design(path: str) -> Design:
-    from couture.pattern.io import load_design
+    from couture.client import load_design
 
     return load_design(path)
 
