@@ -12,8 +12,13 @@ import pkgutil
 import shutil
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import couture.bench
+
+if TYPE_CHECKING:
+    from couture.graph import Graph
+    from couture.supervisor import SupervisorConfig
 
 DEFAULT_UI_PORT = 8080
 """where ``couture up`` serves its UI page when that port is free"""
@@ -31,7 +36,38 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-v", "--verbose", action="store_true")
     sub = p.add_subparsers(dest="cmd", required=True)
 
-    up = sub.add_parser("up", help="start every node (own processes, restarted on crash)")
+    up = sub.add_parser(
+        "up",
+        help="start the nodes of a node graph (own processes, restarted on crash)",
+        description="Start the nodes a node graph places on this machine, each its own process,\n"
+        "restarted when it dies. Without --graph: couture/graphs/default.toml, the demo on one\n"
+        "machine. Each node's flags come from its configuration in the graph (see\n"
+        "`python -m nodes.<kind> --help` for a kind's keys).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    up.add_argument(
+        "--graph",
+        metavar="FILE",
+        default=None,
+        help="node graph (TOML, couture/graph.py): nodes, the topics each takes and gives, their configuration "
+        "and machines (default: couture/graphs/default.toml)",
+    )
+    up.add_argument(
+        "--machine",
+        metavar="NAME",
+        default=None,
+        help="run this machine's share of a graph over several machines; its router listens or connects as the "
+        "graph's [machines.NAME] says unless --listen/--connect are given",
+    )
+    up.add_argument(
+        "--set",
+        dest="settings",
+        action="append",
+        default=[],
+        metavar="NODE.KEY=VALUE",
+        help="set one config value of a node (by name, or every node of a kind), e.g. solver.max_seconds=30 or "
+        "ui.design=my.json; KEY is a field of the kind's Config, a list takes comma-separated items (repeatable)",
+    )
     up.add_argument(
         "--record",
         metavar="FILE",
@@ -45,20 +81,22 @@ def _parser() -> argparse.ArgumentParser:
     up.add_argument(
         "--solver",
         nargs="+",
-        default=["newton"],
-        choices=["kinetic", "newton", "verlet", "style3d"],
-        help="solver nodes to run (several for side-by-side comparison; default newton: the accuracy "
-        "reference, and the fastest to a converged fine drape after an edit, bench/results/edit_pattern*.json)",
+        default=None,
+        metavar="NAME",
+        help="solver nodes to run in place of the graph's (a name of couture.solvers.SOLVERS each; several for "
+        "side-by-side comparison; the default graph runs newton: the accuracy reference, and the fastest to a "
+        "converged fine drape after an edit, bench/results/edit_pattern*.json)",
     )
     up.add_argument(
         "--only",
         nargs="+",
         metavar="NODE",
         default=None,
-        help="start only these nodes (remesher, solver, sensitivity, adjust, ui, recorder) to split a session over "
-        "machines: e.g. --only solver --connect tcp/<other machine>:7447 (see README, Several machines)",
+        help="start only these nodes of the graph (kinds: remesher, solver, sensitivity, adjust, ui, recorder; or "
+        "node names), e.g. --only solver --connect tcp/<other machine>:7447; a graph with [machines] and --machine "
+        "says the same in one file",
     )
-    up.add_argument("--ui-host", default="127.0.0.1")
+    up.add_argument("--ui-host", default=None, help="host the UI binds (default: the graph's, 127.0.0.1)")
     up.add_argument(
         "--ui-port",
         type=int,
@@ -365,35 +403,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     from couture.bus import bus_config_from_args
 
     if args.cmd == "up":
-        from couture import supervisor
-
-        no_ui = args.no_ui or (args.only is not None and "ui" not in args.only)
-        ui_port = 0 if no_ui else ui_port_for(args.ui_host, args.ui_port)
-        try:
-            nodes = supervisor.only_nodes(
-                supervisor.default_nodes(
-                    solvers=args.solver,
-                    ui=not args.no_ui,
-                    ui_host=args.ui_host,
-                    ui_port=ui_port,
-                    record=args.record,
-                    adjust=not args.no_adjust,
-                ),
-                args.only,
-            )
-        except ValueError as e:
-            print(f"couture up: {e}", file=sys.stderr)
-            return 2
-        if args.tls and any(n.name == "adjust" for n in nodes) and not (Path(args.tls) / "adjust.pem").exists():
-            # a secure directory made before the adjust node existed: run without it
-            nodes = [n for n in nodes if n.name != "adjust"]
-            print(
-                f"couture up: no certificate for the adjust node in {args.tls}: started without it "
-                f"(add it: couture certs --out {args.tls} --nodes adjust --writers adjust)",
-                file=sys.stderr,
-            )
-        url = "" if no_ui else f"http://{args.ui_host}:{ui_port}/"
-        return supervisor.main(supervisor.SupervisorConfig(bus=bus_config_from_args(args), nodes=nodes, ui_url=url))
+        return up(args)
 
     if args.cmd == "certs":
         from couture.bus.secure import POLICY_FILE, Policy, make_certs
@@ -503,10 +513,78 @@ def _dispatch(args: argparse.Namespace) -> int:
     raise AssertionError(args.cmd)
 
 
-def ui_port_for(host: str, asked: int | None) -> int:
+def up(args: argparse.Namespace) -> int:
+    """``couture up``: the graph's nodes on this machine, as adjusted by the flags."""
+    from couture import supervisor
+
+    try:
+        config, graph = up_plan(args)
+    except ValueError as e:
+        print(f"couture up: {e}", file=sys.stderr)
+        return 2
+    print(
+        f"[up] graph {graph.source}" + (f", machine {args.machine}" if args.machine else "") + ": "
+        f"{', '.join(n.name for n in config.nodes) or 'no nodes'}",
+        file=sys.stderr,
+        flush=True,
+    )
+    return supervisor.main(config)
+
+
+def up_plan(args: argparse.Namespace) -> tuple[SupervisorConfig, Graph]:
+    """What ``couture up ARGS`` starts, without starting it: the supervisor's
+    config (its bus, the node processes, the UI's URL) and the graph it came
+    from. A bad graph or flag raises ValueError (GraphError) saying which."""
+    from couture import supervisor
+    from couture.bus import bus_config_from_args
+    from couture.graph import load_graph
+
+    graph = load_graph(args.graph)
+    if args.solver:
+        graph = graph.with_solvers(args.solver)
+    for kind, off in (("adjust", args.no_adjust), ("ui", args.no_ui)):
+        if off:
+            graph = graph.without(kind)
+    for item in args.settings:
+        target, eq, value = item.partition("=")
+        node, dot, key = target.rpartition(".")
+        if not eq or not dot or not node or not key:
+            raise ValueError(f"--set {item!r} is not NODE.KEY=VALUE (e.g. solver.max_seconds=30)")
+        graph.set(node, key, value)
+    extra = [supervisor.recorder_node(args.record)] if args.record else []
+    here = {n.name for n in supervisor.only_nodes(supervisor.graph_nodes(graph, args.machine) + extra, args.only)}
+    url = ""
+    for n in graph.nodes:
+        if n.kind == "ui" and n.name in here:
+            host = args.ui_host or str(n.config.get("host", "127.0.0.1"))
+            port = ui_port_for(host, args.ui_port, int(n.config.get("port", DEFAULT_UI_PORT)))
+            graph.set(n.name, "host", host)
+            graph.set(n.name, "port", str(port))
+            url = url or f"http://{host}:{port}/"
+    # the nodes' command lines, written from the graph once the ports are known
+    nodes = [n for n in supervisor.graph_nodes(graph, args.machine) + extra if n.name in here]
+    if args.tls and any(n.name == "adjust" for n in nodes) and not (Path(args.tls) / "adjust.pem").exists():
+        # a secure directory made before the adjust node existed: run without it
+        nodes = [n for n in nodes if n.name != "adjust"]
+        print(
+            f"couture up: no certificate for the adjust node in {args.tls}: started without it "
+            f"(add it: couture certs --out {args.tls} --nodes adjust --writers adjust)",
+            file=sys.stderr,
+        )
+    bus = bus_config_from_args(args)
+    if args.machine is not None:  # the graph says how this machine's router links to the others
+        machine = graph.machines[args.machine]
+        if not args.listen and machine.listen:
+            bus.listen = list(machine.listen)
+        if not args.connect and machine.connect:
+            bus.connect = list(machine.connect)
+    return supervisor.SupervisorConfig(bus=bus, nodes=nodes, ui_url=url), graph
+
+
+def ui_port_for(host: str, asked: int | None, default: int = DEFAULT_UI_PORT) -> int:
     """The UI page's port for ``couture up``: ``asked`` when it is free (a
     taken one raises RuntimeError naming it: the user chose it), else
-    DEFAULT_UI_PORT when it and the views' two ports after it are free, else
+    ``default`` (the graph's) when it and the views' two ports after it are free, else
     the first such block above it. The UI node binds it, or, should another
     process take it meanwhile, the next free one (it prints its own URL)."""
     from couture.bus.ports import free_port_block, port_is_free
@@ -518,10 +596,10 @@ def ui_port_for(host: str, asked: int | None) -> int:
                 "choose another port, or leave --ui-port out to take a free one"
             )
         return asked
-    port = free_port_block(DEFAULT_UI_PORT, 3, host)
-    if port != DEFAULT_UI_PORT:
+    port = free_port_block(default, 3, host)
+    if port != default:
         print(
-            f"[up] ports {DEFAULT_UI_PORT}-{DEFAULT_UI_PORT + 2} are not all free (another couture up?): "
+            f"[up] ports {default}-{default + 2} are not all free (another couture up?): "
             f"this session's UI is on port {port}",
             file=sys.stderr,
             flush=True,
@@ -696,13 +774,16 @@ def drape(
         if bus.connect:
             cfg = bus
         else:
-            # no sensitivity node: a one-shot drape makes no predictions, and its
-            # refactorizations would take CPU from the solve
-            nodes = [n for n in supervisor.default_nodes(solvers=[solver], ui=False) if n.name != "sensitivity"]
+            # the default graph without sensitivity (a one-shot drape makes no predictions,
+            # and its refactorizations would take CPU from the solve), adjust and ui
+            from couture.graph import load_graph
+
+            graph = load_graph().with_solvers([solver])
+            for kind in ("sensitivity", "adjust", "ui"):
+                graph = graph.without(kind)
             if solver_max_seconds is not None:
-                for n in nodes:
-                    if n.module == "nodes.solver":
-                        n.args += ["--max-seconds", str(solver_max_seconds)]
+                graph.set("solver", "max_seconds", repr(float(solver_max_seconds)))
+            nodes = supervisor.graph_nodes(graph)
             child_log = None
             if not verbose:
                 out_dir.mkdir(parents=True, exist_ok=True)

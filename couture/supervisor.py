@@ -9,11 +9,20 @@ Nothing binds a non-loopback interface unless asked. With ``--tls DIR``
 uses the certificate ``DIR/router.pem`` and each child its own
 (couture.bus.secure).
 
-Several machines: each runs ``couture up --only <kinds>`` (:func:`only_nodes`);
-one listens on its network address (``--listen tcp/<address>:7447``), the
-others connect to it (``--connect``), so their routers link and each machine's
-nodes reach the others through them; a router that loses the link reconnects
-by itself once it is back (README, "Several machines"; tests/test_netns.py).
+Which nodes run, and with what configuration, is data: a node graph
+(couture/graph.py; ``couture/graphs/default.toml`` without ``--graph``).
+:func:`graph_nodes` turns the part of a graph placed on one machine into
+:class:`NodeSpec` s, each node's flags written from its configuration with its
+Config's own flags (couture.bus.nodeargs).
+
+Several machines: a graph declares them (``[machines.<name>]`` with the
+router's ``listen`` or ``connect`` endpoints) and places each node on one;
+each machine runs ``couture up --graph FILE --machine NAME``. One router
+listens on its network address, the others connect to it, so their routers
+link and each machine's nodes reach the others through them; a router that
+loses the link reconnects by itself once it is back (tests/test_netns.py).
+``couture up --only <kinds>`` (:func:`only_nodes`) still starts a part of the
+default graph.
 
 Children are started with ``subprocess`` (fork + immediate exec: no Zenoh
 state crosses it) in their own process group, with ``COUTURE_PARENT_PID`` so
@@ -28,9 +37,9 @@ file it writes is never reopened for writing, so a recorder restarted after
 a crash writes ``<stem>.1.mcap``, ``<stem>.2.mcap``, ... (FILE itself when it
 did not exist yet), and ``couture replay FILE`` reads them as one recording.
 
-Adding a node: append a :class:`NodeSpec` in :func:`default_nodes` (module
-``nodes.<name>`` with a ``__main__`` that takes the bus flags plus
-``--name``).
+Adding a node: a kind in couture.graph.KINDS (module ``nodes.<kind>`` with a
+``Config`` and a ``__main__`` calling ``run_node``) and a ``[nodes.<name>]``
+table in a graph.
 """
 
 from __future__ import annotations
@@ -48,6 +57,7 @@ from dataclasses import dataclass, field
 from couture.bus import DEFAULT_PORT, PARENT_PID_ENV, Bus, BusConfig, StopFlag, open_session
 from couture.bus.ports import free_port, port_is_free
 from couture.bus.secure import ROUTER_NAME, node_files
+from couture.graph import KINDS, Graph, load_graph
 
 log = logging.getLogger("couture.supervisor")
 
@@ -62,6 +72,12 @@ class NodeSpec:
     restart: bool = True
     stop_last: bool = False
     """stopped after the others (the recorder)"""
+    kind: str = ""
+    """its node kind (``couture up --only`` selects by it); '' : the name before its first '-'"""
+
+    @property
+    def kind_or_name(self) -> str:
+        return self.kind or self.name.split("-", 1)[0]
 
 
 @dataclass
@@ -81,6 +97,25 @@ class SupervisorConfig:
     and library logs); None: they share the supervisor's terminal"""
 
 
+def graph_nodes(graph: Graph, machine: str | None = None) -> list[NodeSpec]:
+    """The nodes ``graph`` places on ``machine`` (None: a graph without machines), as child processes."""
+    return [NodeSpec(n.name, KINDS[n.kind].module, graph.args(n), kind=n.kind) for n in graph.on_machine(machine)]
+
+
+def recorder_node(record: str) -> NodeSpec:
+    """The recorder writing ``record``, with one run id for every restart: a
+    restarted recorder writes the next numbered part of this recording (never
+    over the file it had open)."""
+    run_id = uuid.uuid4().hex
+    return NodeSpec(
+        "recorder",
+        "couture.recording",
+        ["--out", record, "--quiet", "--run-id", run_id],
+        stop_last=True,
+        kind="recorder",
+    )
+
+
 def default_nodes(
     *,
     solvers: list[str] | None = None,
@@ -90,42 +125,49 @@ def default_nodes(
     record: str | None = None,
     adjust: bool = False,
 ) -> list[NodeSpec]:
-    """The standard set: remesher, one solver node per solver name, sensitivity,
-    the adjust node (pattern adjustment for direct 3D edits; ``couture up``
-    starts it, tests ask for it), ui, recorder."""
-    nodes = [NodeSpec("remesher", "nodes.remesher")]
-    for s in solvers or ["newton"]:
-        nodes.append(NodeSpec(f"solver-{s}", "nodes.solver", ["--solver", s]))
-    nodes.append(NodeSpec("sensitivity", "nodes.sensitivity"))
-    if adjust:
-        nodes.append(NodeSpec("adjust", "nodes.adjust"))
-    if ui:
-        nodes.append(NodeSpec("ui", "nodes.ui", ["--host", ui_host, "--port", str(ui_port)]))
+    """The default graph (couture/graphs/default.toml) as child processes:
+    remesher, one solver node per solver name (default: the graph's, newton),
+    sensitivity, the adjust node (``couture up`` starts it, tests ask for it),
+    ui, and the recorder when ``record`` names a file."""
+    graph = load_graph()
+    if solvers:
+        graph = graph.with_solvers(solvers)
+    if not adjust:
+        graph = graph.without("adjust")
+    if not ui:
+        graph = graph.without("ui")
+    else:
+        graph.set("ui", "host", ui_host)
+        graph.set("ui", "port", str(ui_port))
+    nodes = graph_nodes(graph)
     if record:
-        # one run id for every restart: a restarted recorder writes the next
-        # numbered part of this recording (never over the file it had open)
-        run_id = uuid.uuid4().hex
-        nodes.append(
-            NodeSpec("recorder", "couture.recording", ["--out", record, "--quiet", "--run-id", run_id], stop_last=True)
-        )
+        nodes.append(recorder_node(record))
     return nodes
 
 
-NODE_KINDS = ("remesher", "solver", "sensitivity", "adjust", "ui", "recorder")
-"""what ``couture up --only`` selects by: a node's name, or a solver node's name before ``-``"""
+def node_kinds() -> tuple[str, ...]:
+    """What ``couture up --only`` selects by: a node kind (every node of it), or the recorder."""
+    return (*KINDS, "recorder")
+
+
+NODE_KINDS = node_kinds()
 
 
 def only_nodes(nodes: list[NodeSpec], kinds: list[str] | None) -> list[NodeSpec]:
     """The nodes of ``kinds`` (``None``: all of them), for ``couture up --only``:
     one machine runs some nodes, another the rest (``--only solver`` keeps every
-    ``solver-<name>``). A kind none of ``nodes`` is raises ValueError naming it."""
+    solver node). A node's name selects it too. A kind none of ``nodes`` is
+    raises ValueError naming it."""
     if kinds is None:
         return list(nodes)
-    unknown = [k for k in kinds if k not in NODE_KINDS]
+    names = {n.name for n in nodes}
+    unknown = [k for k in kinds if k not in NODE_KINDS and k not in names]
     if unknown:
-        raise ValueError(f"--only {' '.join(unknown)}: not a node kind (one of {', '.join(NODE_KINDS)})")
-    picked = [n for n in nodes if n.name.split("-", 1)[0] in kinds]
-    missing = [k for k in kinds if not any(n.name.split("-", 1)[0] == k for n in picked)]
+        raise ValueError(
+            f"--only {' '.join(unknown)}: not a node kind (one of {', '.join(NODE_KINDS)}) nor a node's name"
+        )
+    picked = [n for n in nodes if n.kind_or_name in kinds or n.name in kinds]
+    missing = [k for k in kinds if not any(k in (n.kind_or_name, n.name) for n in picked)]
     if missing:
         hint = {"recorder": " (the recorder needs --record FILE)", "ui": " (not with --no-ui)"}
         raise ValueError("--only " + ", ".join(f"{k}: no such node here{hint.get(k, '')}" for k in missing))

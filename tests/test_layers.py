@@ -23,6 +23,7 @@ BUS_FACING = (
     "couture.recording",
     "couture.client",
     "couture.supervisor",
+    "couture.graph",  # the node graph: node command lines from their Configs (couture.bus.nodeargs)
     "couture.cli",
     "couture.__main__",  # python -m couture: the CLI
     # benchmarks of the running system: they start nodes or time the bus

@@ -4,11 +4,13 @@ The test makes its own network namespaces (and removes them, whatever
 happens): a router namespace forwarding between three subnets, and three
 "machines" each on its own veth pair to it:
 
-    A 10.77.1.1  couture up --only remesher sensitivity --listen tcp/10.77.1.1:7447
-    B 10.77.2.1  couture up --only solver --solver newton --connect tcp/10.77.1.1:7447
+    A 10.77.1.1  couture up --graph tests/graphs/two_machines.toml --machine a
+    B 10.77.2.1  couture up --graph tests/graphs/two_machines.toml --machine b
     C 10.77.3.1  the scripted client (tests/netns_driver.py), a Zenoh client of A's router
 
-(the README's "Several machines" commands). A design published on C is meshed
+The graph places the remesher and the sensitivity node on A, whose router
+listens on tcp/10.77.1.1:7447, and the Newton solver on B, whose router
+connects there (its [machines] tables). A design published on C is meshed
 on A, draped on B, and its drape arrives on C; a press and drag on C gets the
 sensitivity node's prediction from A; the edited design's fine drape follows.
 Then B's link goes down (its router-side veth, as a pulled cable): A and C see
@@ -38,9 +40,12 @@ from pathlib import Path
 
 import pytest
 
+from couture.graph import load_graph
+
 pytestmark = [pytest.mark.timeout(240), pytest.mark.slow]
 
 ROOT = Path(__file__).resolve().parents[1]
+GRAPH = ROOT / "tests" / "graphs" / "two_machines.toml"
 SUBNET = "10.77"
 MACHINES = ("a", "b", "c")
 LEASE = "{transport: {link: {tx: {lease: 1000, keep_alive: 4}}}}"
@@ -180,11 +185,15 @@ def test_nodes_on_three_machines_through_a_router_survive_a_partition(net: Net, 
     conf = tmp_path / "lease.json5"
     conf.write_text(LEASE)
     endpoint = f"tcp/{net.addr('a')}:7447"
-    up = [sys.executable, "-m", "couture", "up", "--session", session, "--config", str(conf)]
+    graph = load_graph(GRAPH)
+    assert graph.machines["a"].listen == [endpoint] and graph.machines["b"].connect == [endpoint]
+    where = {n.name: n.machine for n in graph.nodes}
+    assert where == {"remesher": "a", "sensitivity": "a", "solver-newton": "b"}
+    up = [sys.executable, "-m", "couture", "up", "--session", session, "--config", str(conf), "--graph", str(GRAPH)]
     logs = {m: tmp_path / f"{m}.log" for m in MACHINES}
     t0 = time.monotonic()
     with ExitStack() as stack:
-        a = net.exec("a", [*up, "--only", "remesher", "sensitivity", "--listen", endpoint], logs["a"])
+        a = net.exec("a", [*up, "--machine", "a"], logs["a"])
         stack.callback(stop, a)
         # a Zenoh client gives up at once when nothing listens: C starts once A's router does
         deadline = time.monotonic() + 30
@@ -192,7 +201,7 @@ def test_nodes_on_three_machines_through_a_router_survive_a_partition(net: Net, 
             assert a.poll() is None, f"couture up on machine A exited: {logs['a'].read_text()[-3000:]}"
             assert time.monotonic() < deadline, f"couture up on machine A not up: {logs['a'].read_text()[-3000:]}"
             time.sleep(0.1)
-        b = net.exec("b", [*up, "--only", "solver", "--solver", "newton", "--connect", endpoint], logs["b"])
+        b = net.exec("b", [*up, "--machine", "b"], logs["b"])
         stack.callback(stop, b)
         c = net.exec(
             "c",
@@ -207,8 +216,7 @@ def test_nodes_on_three_machines_through_a_router_survive_a_partition(net: Net, 
             client = Driver(c)
             assert client.read(30).get("ok")
             client("wait_nodes", nodes=["remesher", "sensitivity", "solver-newton"], timeout=60)
-            # each node runs on its own machine
-            where = {"remesher": "a", "sensitivity": "a", "solver-newton": "b"}
+            # each node runs on the machine the graph places it on
             deadline = time.monotonic() + 10  # (a node's status goes out once a second)
             while not set(where) <= set(pids := client("pids", timeout=5)["pids"]):
                 assert time.monotonic() < deadline, f"no status from {sorted(set(where) - set(pids))}"

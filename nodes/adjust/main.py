@@ -37,8 +37,8 @@ class Config:
     """node name, unique in the session (liveliness key status/<name>)"""
     vertices: int = 400
     """coarse mesh size [vertices] of a request that names none (0)"""
-    solvers: list[str] = field(default_factory=list)
-    """solver node names to ask; empty: every live ``solver-*`` node"""
+    solvers: list[str] = field(default_factory=list, metadata={"flag": "--solver"})
+    """solver node names to ask (repeatable); empty: every live ``solver-*`` node"""
     max_seconds: float = 60.0
     """[s] cap on each solve"""
 

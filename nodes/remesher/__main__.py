@@ -1,13 +1,7 @@
-import argparse
-import logging
+"""``python -m nodes.remesher --help``: the flags are the fields of :class:`nodes.remesher.main.Config` plus the bus flags."""
 
-from couture.bus import add_bus_args, bus_config_from_args
+from couture.bus.nodeargs import run_node
 from nodes.remesher.main import Config, main
 
 if __name__ == "__main__":
-    p = argparse.ArgumentParser(prog="python -m nodes.remesher")
-    add_bus_args(p)
-    p.add_argument("--name", default="remesher", help="node name, unique in the session")
-    a = p.parse_args()
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s remesher %(levelname)s %(message)s")
-    main(Config(bus=bus_config_from_args(a), name=a.name))
+    run_node(Config, main, "remesher")

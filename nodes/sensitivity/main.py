@@ -46,7 +46,7 @@ class Config:
     bus: BusConfig = field(default_factory=BusConfig)
     name: str = "sensitivity"
     """node name, unique in the session (liveliness key status/<name>)"""
-    method: str = "gmls"
+    method: str = field(default="gmls", metadata={"choices": ("gmls", "mls", "linear")})
     """'gmls', 'mls' or 'linear'"""
     pause_s: float = 0.3
     """[s] without pointer motion before the idle solve that enriches the cache"""

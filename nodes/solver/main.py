@@ -49,7 +49,7 @@ from couture.cloth.model import ClothModel
 from couture.designs import Matched
 from couture.pattern.errors import PatternError
 from couture.pattern.limits import check_simulation_values
-from couture.solvers import get_solver
+from couture.solvers import SOLVERS, get_solver
 from couture.solvers.service import IncomingMesh, LevelRun, SolveService, scene_from_design
 from couture.tryon import TryOnError
 from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg, SolveRequestMsg, SolveResultMsg, TryOnMsg
@@ -65,20 +65,23 @@ class Config:
     bus: BusConfig = field(default_factory=BusConfig)
     name: str = "solver-newton"
     """node name, unique in the session (liveliness key status/<name>)"""
-    solver: str = "newton"
-    """'kinetic', 'newton', 'verlet' or 'style3d' (the peer, couture[peer])"""
+    solver: str = field(default="newton", metadata={"choices": lambda: sorted(SOLVERS)})
+    """the solver (couture.solvers.SOLVERS: 'kinetic', 'newton', 'verlet', 'style3d', the peer, couture[peer])"""
     progress_period_s: float = 0.5
     """[s] between progress drapes during a solve"""
     max_seconds: float | None = None
     """[s] cap on each level's solve (coarse and fine alike); None: the
     service's defaults. A capped level is published unconverged, with its
     diagnosis, like any other stopped solve."""
-    backend: str = field(default_factory=lambda: os.environ.get(BACKEND_ENV, ""))
+    backend: str = field(
+        default_factory=lambda: os.environ.get(BACKEND_ENV, ""),
+        metadata={"choices": ("", "auto", "pardiso", "pardiso32", "cholmod", "splu")},
+    )
     """direct linear-solver backend of the kinetic and Newton solvers ('pardiso',
     'pardiso32', 'cholmod', 'splu'); '' keeps the solver's own choice ('auto').
     Defaults to $COUTURE_SOLVER_BACKEND, so a test can run every solver node of a
     session on SuperLU without a flag per node."""
-    sessions: list[str] = field(default_factory=list)
+    sessions: list[str] = field(default_factory=list, metadata={"flag": "--serve-session"})
     """design sessions this node serves as a member of a solver pool ([]: its
     own session alone). With sessions, the node's own session is the pool's:
     its members see each other there (liveliness) and share the sessions out

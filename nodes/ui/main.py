@@ -58,6 +58,12 @@ from schemas.messages import (
 log = logging.getLogger("couture.ui.node")
 
 
+def _load_design(path: str) -> Design:
+    from couture.client import load_design
+
+    return load_design(path)
+
+
 @dataclass
 class Config:
     bus: BusConfig = field(default_factory=BusConfig)
@@ -66,13 +72,17 @@ class Config:
     host: str = "127.0.0.1"
     """viser binds here (loopback by default)"""
     port: int = 8080
-    """the combined page (what users open); the 3D view is port + 1, the pattern view port + 2"""
+    """the combined page (what users open); the 3D view is port + 1, the pattern view port + 2; a taken port
+    moves the page to the next free one (port + 3, ...), and the URL printed says where"""
     export_dir: Path = Path("out/exports")
+    """where exports are written"""
     record_dir: Path = Path("out/recordings")
     """where the record toggle writes session-<time>.mcap (when no recorder node runs)"""
-    design: Design | None = None
-    """initial design (None: the default skirt); published once at start"""
+    design: Design | None = field(default=None, metadata={"parse": _load_design})
+    """initial design, read from a pattern JSON file (couture/design/v1) when the
+    session has none yet (None: the default skirt); published once at start"""
     publish_initial: bool = True
+    """publish the initial design once at start when no pattern came from the session"""
 
 
 class UIAdapter:
