@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import couture.bench
+from couture.solvers import SOLVERS
 
 if TYPE_CHECKING:
     from couture.graph import Graph
@@ -174,7 +175,7 @@ def _parser() -> argparse.ArgumentParser:
         help="[s] to wait for the final fine drape (default 240: longer than the solver's own caps, "
         "so a slow solve ends with its diagnosis, exit 3, rather than a timeout, exit 5)",
     )
-    dp.add_argument("--solver", default="newton", choices=["kinetic", "newton", "verlet", "style3d"])
+    dp.add_argument("--solver", default="newton", choices=sorted(SOLVERS))
     dp.add_argument(
         "--solver-max-seconds",
         type=float,
@@ -261,7 +262,7 @@ def _parser() -> argparse.ArgumentParser:
         "--solver",
         action="append",
         default=None,
-        choices=["kinetic", "newton", "verlet", "style3d"],
+        choices=sorted(SOLVERS),
         help="solver node(s) to start and fan the solves out to (repeatable; default newton); with --connect: "
         "which live solver-<name> nodes to use (default every live one)",
     )
