@@ -24,7 +24,15 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit
 
-from couture.cloth.kernels import bending_stencil_weights_dir
+from couture.cloth.kernels import (
+    _bending_dforce,
+    _deformation,
+    _membrane_dforce,
+    _rest_shape_change,
+    _shape_vectors,
+    _stress,
+    bending_stencil_weights_dir,
+)
 from couture.cloth.model import BEND_CONSTANT, GRAVITY, ClothModel
 
 
@@ -33,8 +41,8 @@ def _membrane_gravity_blocks(x, tris, Dminv, area, mu, lam, membrane, rho_g3, tr
     """data[slot(v, u)] (3, 2) += ∂f_v/∂X_u of the membrane (if ``membrane``)
     and gravity (weight ``rho_g3`` = ρ g / 3 per unit area; 0: none) of every
     triangle. The per-triangle force is linear in dDm = [dX1-dX0, dX2-dX0]:
-    four probes (the entries of dDm) give it, as ``membrane_dforces_dX``
-    computes it for one dX."""
+    four probes (the entries of dDm) give it, each by the kernels of
+    ``membrane_dforces_dX`` (``_rest_shape_change``, ``_membrane_dforce``)."""
     b = np.empty((3, 2))
     db = np.empty((3, 2))
     F = np.empty((3, 2))
@@ -46,75 +54,27 @@ def _membrane_gravity_blocks(x, tris, Dminv, area, mu, lam, membrane, rho_g3, tr
     dDm = np.empty((2, 2))
     dDi = np.empty((2, 2))
     tmp = np.empty((2, 2))
+    dP = np.empty((3, 3))
     g = np.empty((4, 3, 3))  # g[probe, a, i]: ∂f_{a,i}/∂dDm[probe]
     for t in range(tris.shape[0]):
         A = area[t]
-        b[1, 0] = Dminv[t, 0, 0]
-        b[1, 1] = Dminv[t, 0, 1]
-        b[2, 0] = Dminv[t, 1, 0]
-        b[2, 1] = Dminv[t, 1, 1]
-        b[0, 0] = -b[1, 0] - b[2, 0]
-        b[0, 1] = -b[1, 1] - b[2, 1]
-        F[:, :] = 0.0
-        for a in range(3):
-            v = tris[t, a]
-            for i in range(3):
-                for k in range(2):
-                    F[i, k] += x[v, i] * b[a, k]
-        for k in range(2):
-            for l in range(2):
-                c = 0.0
-                for i in range(3):
-                    c += F[i, k] * F[i, l]
-                E[k, l] = 0.5 * (c - (1.0 if k == l else 0.0))
-        tr = E[0, 0] + E[1, 1]
-        for k in range(2):
-            for l in range(2):
-                S[k, l] = 2.0 * mu * E[k, l] + (lam * tr if k == l else 0.0)
+        _shape_vectors(Dminv, t, b)
+        _deformation(x, tris, t, b, F)
+        _stress(F, mu, lam, E, S)
         for p in range(4):
             dDm[:, :] = 0.0
             dDm[p // 2, p % 2] = 1.0
-            for k in range(2):
-                for l in range(2):
-                    tmp[k, l] = Dminv[t, k, 0] * dDm[0, l] + Dminv[t, k, 1] * dDm[1, l]
-            for k in range(2):
-                for l in range(2):
-                    dDi[k, l] = -(tmp[k, 0] * Dminv[t, 0, l] + tmp[k, 1] * Dminv[t, 1, l])
-            dA = A * (tmp[0, 0] + tmp[1, 1])
+            dA = _rest_shape_change(Dminv, t, A, dDm, tmp, dDi)
             for a in range(3):
                 for i in range(3):
                     g[p, a, i] = 0.0
                 g[p, a, 1] -= rho_g3 * dA
             if not membrane:
                 continue
-            db[1, 0], db[1, 1] = dDi[0, 0], dDi[0, 1]
-            db[2, 0], db[2, 1] = dDi[1, 0], dDi[1, 1]
-            db[0, 0], db[0, 1] = -db[1, 0] - db[2, 0], -db[1, 1] - db[2, 1]
-            dF[:, :] = 0.0
-            for a in range(3):
-                v = tris[t, a]
-                for i in range(3):
-                    for k in range(2):
-                        dF[i, k] += x[v, i] * db[a, k]
-            for k in range(2):
-                for l in range(2):
-                    c = 0.0
-                    for i in range(3):
-                        c += F[i, k] * dF[i, l] + dF[i, k] * F[i, l]
-                    dE[k, l] = 0.5 * c
-            trd = dE[0, 0] + dE[1, 1]
-            for k in range(2):
-                for l in range(2):
-                    dS[k, l] = 2.0 * mu * dE[k, l] + (lam * trd if k == l else 0.0)
+            _membrane_dforce(x, tris, t, A, dA, mu, lam, b, F, S, dDi, db, dF, dE, dS, dP)
             for a in range(3):
                 for i in range(3):
-                    acc = 0.0
-                    for k in range(2):
-                        Sb = S[k, 0] * b[a, 0] + S[k, 1] * b[a, 1]
-                        dSb = dS[k, 0] * b[a, 0] + dS[k, 1] * b[a, 1]
-                        Sdb = S[k, 0] * db[a, 0] + S[k, 1] * db[a, 1]
-                        acc += dA * F[i, k] * Sb + A * (dF[i, k] * Sb + F[i, k] * dSb + F[i, k] * Sdb)
-                    g[p, a, i] -= acc
+                    g[p, a, i] -= dP[a, i]
         # dDm[k, 0] = dX1k - dX0k, dDm[k, 1] = dX2k - dX0k: probe p = 2k + col
         for a in range(3):
             for c in range(3):
@@ -132,12 +92,11 @@ def _membrane_gravity_blocks(x, tris, Dminv, area, mu, lam, membrane, rho_g3, tr
 def _bending_blocks(x, X, st, coef0, bend_slots, data):
     """data[slot(v, u)] (3, 2) += ∂f_v/∂X_u of the bending term
     f = -Σ_e c fac_e K_e (K_e·x), c = ``coef0``: the exact derivative of each
-    stencil's K and fac (``bending_stencil_weights_dir``, as
-    ``bending_dforces_dX``), one probe per stencil vertex and material axis."""
+    stencil's K and fac (``bending_stencil_weights_dir``, ``_bending_dforce``,
+    as ``bending_dforces_dX``), one probe per stencil vertex and material axis."""
     w = np.empty(4)
     dw = np.empty(4)
-    s = np.empty(3)
-    ds = np.empty(3)
+    dP = np.empty((4, 3))
     d = np.zeros(8)
     for e in range(st.shape[0]):
         for q in range(4):
@@ -145,18 +104,11 @@ def _bending_blocks(x, X, st, coef0, bend_slots, data):
                 d[:] = 0.0
                 d[2 * q + k] = 1.0  # vertex q of the stencil moves along material axis k
                 fac, dfac = bending_stencil_weights_dir(X, st, e, d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], w, dw)
-                for c in range(3):
-                    acc = 0.0
-                    dacc = 0.0
-                    for a in range(4):
-                        acc += w[a] * x[st[e, a], c]
-                        dacc += dw[a] * x[st[e, a], c]
-                    s[c] = acc
-                    ds[c] = dacc
+                _bending_dforce(x, st, e, coef0, fac, dfac, w, dw, dP)
                 for a in range(4):
                     slot = bend_slots[e, a, q]
                     for c in range(3):
-                        data[slot, c, k] -= coef0 * (dfac * w[a] * s[c] + fac * (dw[a] * s[c] + w[a] * ds[c]))
+                        data[slot, c, k] -= dP[a, c]
 
 
 class DForcesDX:
