@@ -114,6 +114,12 @@ def _sleeve_rings(seams: list[tuple[str, str, str, str]], down: float = 0.03) ->
 
 # ---------------------------------------------------------------- shirt
 
+# the option rows both shirts share
+_LENGTH = opt("length", 0.20, 0.05, 0.45, "m", "waist to hem")
+_EASE = opt("ease", 0.10, 0.02, 0.30, "m", "added to bust and hip girths")
+_CUFF = opt("cuff", 0.30, 0.18, 0.50, "m", "sleeve hem circumference")
+_FRONT_NECK_DEPTH = opt("front_neck_depth", 0.06, 0.01, 0.15, "m", "front neckline drop")
+
 SHIRT_OPTIONS = (
     O.BUST,
     O.WAIST_TO_UNDERARM,
@@ -122,13 +128,13 @@ SHIRT_OPTIONS = (
     O.NECK_GIRTH,
     O.ARM_GIRTH,
     O.HIP,
-    opt("length", 0.20, 0.05, 0.45, "m", "waist to hem"),
-    opt("ease", 0.10, 0.02, 0.30, "m", "added to bust and hip girths"),
+    _LENGTH,
+    _EASE,
     opt("sleeve_length", 0.22, 0.18, 0.40, "m", "cap top to sleeve hem (short to below the elbow)"),
     opt("sleeve_ease", 0.06, 0.02, 0.20, "m", "added to the upper arm girth"),
-    opt("cuff", 0.30, 0.18, 0.50, "m", "sleeve hem circumference"),
+    _CUFF,
     opt("cap_height", 0.10, 0.05, 0.14, "m", "sleeve cap height"),
-    opt("front_neck_depth", 0.06, 0.01, 0.15, "m", "front neckline drop"),
+    _FRONT_NECK_DEPTH,
 )
 
 
@@ -160,15 +166,15 @@ SHIRT_SET_IN_OPTIONS = (
     O.NECK_GIRTH,
     O.ARM_GIRTH,
     O.WAIST_HEIGHT,
-    opt("length", 0.20, 0.05, 0.45, "m", "waist to hem"),
-    opt("ease", 0.10, 0.02, 0.30, "m", "added to bust and hip girths"),
+    _LENGTH,
+    _EASE,
     opt("armhole_drop", 0.04, 0.0, 0.08, "m", "bodice underarm point below the waist_to_underarm line"),
     opt("neck_ease", 0.08, 0.0, 0.15, "m", "added to the neck girth for the neckline width"),
-    opt("front_neck_depth", 0.06, 0.01, 0.15, "m", "front neckline drop"),
+    _FRONT_NECK_DEPTH,
     opt("sleeve_length", 0.22, 0.15, 0.40, "m", "cap top to sleeve hem (short to below the elbow)"),
     opt("sleeve_ease", 0.04, 0.02, 0.20, "m", "added to the upper arm girth: the sleeve's width at the underarm"),
     opt("cap_ease", 0.02, 0.0, 0.05, "m", "sleeve cap seam length minus the armhole length (both halves), eased in"),
-    opt("cuff", 0.30, 0.18, 0.50, "m", "sleeve hem circumference"),
+    _CUFF,
     opt("collar_height", 0.03, 0.015, 0.06, "m", "stand collar (band) height"),
 )
 SLEEVE_DOWN = 0.03
