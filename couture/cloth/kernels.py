@@ -295,23 +295,22 @@ def _membrane_dforce(x, tris, t, A, dA, mu, lam, b, F, S, dDi, db, dF, dE, dS, d
             dP[a, i] = acc
 
 
+@njit(cache=True, inline="always")
+def _membrane_dforce_scratch():
+    """Scratch arrays of ``_rest_shape_change`` and ``_membrane_dforce`` for
+    their callers: b, db, F, dF (3, 2); E, S, dE, dS, dDm, dDi, tmp (2, 2);
+    dP (3, 3)."""
+    v32 = np.empty((4, 3, 2))
+    v22 = np.empty((7, 2, 2))
+    return v32[0], v32[1], v32[2], v32[3], v22[0], v22[1], v22[2], v22[3], v22[4], v22[5], v22[6], np.empty((3, 3))
+
+
 @njit(cache=True)
 def membrane_dforces_dX(x, X, dX, tris, Dminv, area, mu, lam, df):
-    """df (n, 3) += d/de f_membrane(x; X + e dX) at e = 0 (analytic; the
-    derivative of ``_rest_shape_change`` and ``_membrane_dforce``, which
-    ``couture.sensitivity.dfdx`` assembles as a matrix)."""
-    b = np.empty((3, 2))
-    db = np.empty((3, 2))
-    F = np.empty((3, 2))
-    dF = np.empty((3, 2))
-    E = np.empty((2, 2))
-    S = np.empty((2, 2))
-    dE = np.empty((2, 2))
-    dS = np.empty((2, 2))
-    dDm = np.empty((2, 2))
-    dDi = np.empty((2, 2))
-    tmp = np.empty((2, 2))
-    dP = np.empty((3, 3))
+    """df (n, 3) += d/de f_membrane(x; X + e dX) at e = 0 (analytic:
+    ``_rest_shape_change`` and ``_membrane_dforce``, which
+    ``membrane_gravity_dX_blocks`` assembles as a matrix)."""
+    b, db, F, dF, E, S, dE, dS, dDm, dDi, tmp, dP = _membrane_dforce_scratch()
     for t in range(tris.shape[0]):
         i0, i1, i2 = tris[t, 0], tris[t, 1], tris[t, 2]
         for k in range(2):
@@ -457,6 +456,77 @@ def bending_dforces_dX(x, X, dX, st, coef0, df):
         for c in range(3):
             for a in range(4):
                 df[st[e, a], c] -= dP[a, c]
+
+
+# The matrix form of the two dF/dX kernels above, for couture.sensitivity.dfdx.
+# They stay in this file: numba's cache recompiles a function when its own
+# file changes, not when a helper it inlines from another file does.
+
+
+@njit(cache=True)
+def membrane_gravity_dX_blocks(x, tris, Dminv, area, mu, lam, membrane, rho_g3, tri_slots, data):
+    """∂F/∂X as a matrix (``couture.sensitivity.dfdx``): data[slot(v, u)]
+    (3, 2) += ∂f_v/∂X_u of the membrane (if ``membrane``)
+    and gravity (weight ``rho_g3`` = ρ g / 3 per unit area; 0: none) of every
+    triangle. The per-triangle force is linear in dDm = [dX1-dX0, dX2-dX0]:
+    four probes (the entries of dDm) give it, each by the kernels of
+    ``membrane_dforces_dX`` (``_rest_shape_change``, ``_membrane_dforce``)."""
+    b, db, F, dF, E, S, dE, dS, dDm, dDi, tmp, dP = _membrane_dforce_scratch()
+    g = np.empty((4, 3, 3))  # g[probe, a, i]: ∂f_{a,i}/∂dDm[probe]
+    for t in range(tris.shape[0]):
+        A = area[t]
+        _shape_vectors(Dminv, t, b)
+        _deformation(x, tris, t, b, F)
+        _stress(F, mu, lam, E, S)
+        for p in range(4):
+            dDm[:, :] = 0.0
+            dDm[p // 2, p % 2] = 1.0
+            dA = _rest_shape_change(Dminv, t, A, dDm, tmp, dDi)
+            for a in range(3):
+                for i in range(3):
+                    g[p, a, i] = 0.0
+                g[p, a, 1] -= rho_g3 * dA
+            if not membrane:
+                continue
+            _membrane_dforce(x, tris, t, A, dA, mu, lam, b, F, S, dDi, db, dF, dE, dS, dP)
+            for a in range(3):
+                for i in range(3):
+                    g[p, a, i] -= dP[a, i]
+        # dDm[k, 0] = dX1k - dX0k, dDm[k, 1] = dX2k - dX0k: probe p = 2k + col
+        for a in range(3):
+            for c in range(3):
+                s = tri_slots[t, a, c]
+                for k in range(2):
+                    if c == 0:
+                        for i in range(3):
+                            data[s, i, k] -= g[2 * k, a, i] + g[2 * k + 1, a, i]
+                    else:
+                        for i in range(3):
+                            data[s, i, k] += g[2 * k + c - 1, a, i]
+
+
+@njit(cache=True)
+def bending_dX_blocks(x, X, st, coef0, bend_slots, data):
+    """∂F/∂X as a matrix (``couture.sensitivity.dfdx``): data[slot(v, u)]
+    (3, 2) += ∂f_v/∂X_u of the bending term
+    f = -Σ_e c fac_e K_e (K_e·x), c = ``coef0``: the exact derivative of each
+    stencil's K and fac (``bending_stencil_weights_dir``, ``_bending_dforce``,
+    as ``bending_dforces_dX``), one probe per stencil vertex and material axis."""
+    w = np.empty(4)
+    dw = np.empty(4)
+    dP = np.empty((4, 3))
+    d = np.zeros(8)
+    for e in range(st.shape[0]):
+        for q in range(4):
+            for k in range(2):
+                d[:] = 0.0
+                d[2 * q + k] = 1.0  # vertex q of the stencil moves along material axis k
+                fac, dfac = bending_stencil_weights_dir(X, st, e, d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], w, dw)
+                _bending_dforce(x, st, e, coef0, fac, dfac, w, dw, dP)
+                for a in range(4):
+                    slot = bend_slots[e, a, q]
+                    for c in range(3):
+                        data[slot, c, k] -= dP[a, c]
 
 
 @njit(cache=True)
