@@ -243,9 +243,8 @@ def test_edit_jacobians_match_finite_differences():
 def test_param_jacobians_other_slopers(kind):
     d = Design(sloper=Sloper(kind=kind))
     for e in ["param:" + o.name for o in SLOPERS[kind].options if not o.integer][:4]:
-        check_edit_jacobian(
-            d, e, np.array([1.0, 0.0]), nontrivial=None
-        )  # the trousers' hip line is held by the crotch depth: waist_to_hip moves nothing
+        # nontrivial=None: the trousers' hip line is held by the crotch depth, waist_to_hip moves nothing
+        check_edit_jacobian(d, e, np.array([1.0, 0.0]), nontrivial=None)
     if kind == "dress":  # a built-in dart is editable (override stroke)
         check_edit_jacobian(d, "dart:front.waist_dart_l:position", np.array([0.3, 0.5]))
 
