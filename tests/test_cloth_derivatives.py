@@ -3,6 +3,15 @@ PSD projection, dforces_dX, and the reuse of the sparse pattern."""
 
 import numpy as np
 import pytest
+from fdcheck import (
+    along_axes,
+    assert_close,
+    check_gradient,
+    check_hessian,
+    check_jacobian,
+    contact_penetrations,
+    degenerate_triangles,
+)
 
 from couture.cloth import ClothModel, Scene
 from couture.cloth import kernels as K
@@ -43,25 +52,24 @@ def model_and_state(scene=None, seed=0):
 
 
 def fd_gradient_check(model, x, term, h=1e-6, seed=1):
-    rng = np.random.default_rng(seed)
-    f = model.forces(x, [term])
-    assert np.abs(f).max() > 0, f"{term}: analytic force trivially zero"
-    for _ in range(3):
-        d = rng.normal(size=x.shape)
-        fd = (model.energy(x + h * d, [term]) - model.energy(x - h * d, [term])) / (2 * h)
-        an = -np.vdot(f, d)
-        assert abs(fd - an) <= 1e-6 * max(abs(an), np.abs(f).max()), (term, fd, an)
+    """The term's forces are minus the gradient of its energy."""
+    check_gradient(
+        lambda y: model.energy(y, [term]),
+        -model.forces(x, [term]),
+        x,
+        h=h,
+        rtol=1e-6,
+        seed=seed,
+        floor=np.abs(model.forces(x, [term])).max(),
+        what=term,
+    )
 
 
 def fd_hessian_check(model, x, term, h=1e-6, seed=2, project=False, rtol=1e-6):
-    rng = np.random.default_rng(seed)
+    """The term's stiffness is minus the Jacobian of its forces."""
     H = model.stiffness(x, [term], project=project)
     assert abs(H).max() > 0, f"{term}: analytic Hessian trivially zero"
-    for _ in range(3):
-        d = rng.normal(size=x.shape)
-        fd = -(model.forces(x + h * d, [term]) - model.forces(x - h * d, [term])).reshape(-1) / (2 * h)
-        an = H @ d.reshape(-1)
-        assert np.abs(fd - an).max() <= rtol * np.abs(an).max(), (term, np.abs(fd - an).max(), np.abs(an).max())
+    check_hessian(lambda y: -model.forces(y, [term]), H, x, h=h, rtol=rtol, seed=seed, what=term)
 
 
 @pytest.mark.parametrize("term", ["membrane", "bending", "gravity", "seams"])
@@ -173,12 +181,7 @@ def test_contact_grid_sdf_exact_hessian():
     body = GridSDFBody(origin=origin, spacing=h_grid, values=values)
     p = rng.uniform(-0.2, 0.2, size=(40, 3)) + [0, 0, -0.2]
     H = body.phi_hess(p)
-    assert np.abs(H).max() > 1.0
-    for k in range(3):
-        e = np.zeros(3)
-        e[k] = 1e-6
-        fd = (body.phi_grad(p + e)[1] - body.phi_grad(p - e)[1]) / 2e-6
-        np.testing.assert_allclose(H[:, :, k], fd, atol=1e-5 * np.abs(H).max())
+    assert_close(H, along_axes(lambda q: body.phi_grad(q)[1], p, 1e-6), 1e-5, nontrivial=1.0, what="phi_hess")
     model, x = model_and_state(Scene(body=body, contact_offset=0.01))
     phi, _ = body.phi_grad(x)
     assert (phi < 0.01).sum() > 5
@@ -223,21 +226,22 @@ def test_dforces_dX_vs_rebuilt_models():
     x = random_drape(mesh, seed=4)
     rng = np.random.default_rng(5)
     dX = rng.normal(size=mesh.X.shape)
-    an = model.dforces_dX(x, dX)
-    assert np.abs(an).max() > 0
     h = 1e-6
-    fp = ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X + h * dX}), FABRIC, scene).forces(x)
-    fm = ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X - h * dX}), FABRIC, scene).forces(x)
-    fd = (fp - fm) / (2 * h)
-    np.testing.assert_allclose(an, fd, atol=1e-6 * np.abs(fd).max())
-    for term in ["membrane", "bending", "gravity"]:
-        an_t = model.dforces_dX(x, dX, [term])
-        assert np.abs(an_t).max() > 0, term
-        fd_t = (
-            ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X + h * dX}), FABRIC, scene).forces(x, [term])
-            - ClothModel(GarmentMesh(**{**mesh.__dict__, "X": mesh.X - h * dX}), FABRIC, scene).forces(x, [term])
-        ) / (2 * h)
-        np.testing.assert_allclose(an_t, fd_t, atol=1e-6 * np.abs(fd_t).max(), err_msg=term)
+
+    def forces_at(terms=None):
+        return lambda X: ClothModel(GarmentMesh(**{**mesh.__dict__, "X": X}), FABRIC, scene).forces(x, terms)
+
+    for terms in (None, ["membrane"], ["bending"], ["gravity"]):
+        check_jacobian(
+            forces_at(terms),
+            lambda d, terms=terms: model.dforces_dX(x, d, terms),
+            mesh.X,
+            h=h,
+            rtol=1e-6,
+            dirs=[dX],
+            what=f"dforces_dX {terms}",
+        )
+    fp = forces_at()(mesh.X + h * dX)
     # seams do not depend on X
     assert np.abs(model.dforces_dX(x, dX, ["seams"])).max() == 0
     # set_rest_positions matches a rebuild
@@ -260,3 +264,74 @@ def test_element_hessians_assemble_to_the_membrane_stiffness(project):
     np.add.at(dense, (rows, cols), H.ravel())
     Km = model.stiffness(x, ["membrane"], project=project).toarray()
     np.testing.assert_allclose(dense, Km, rtol=0, atol=1e-14 * np.abs(Km).max())
+
+
+# ---------------------------------------------------------------- degenerate configurations
+
+
+def _altitude(P):
+    """Smallest altitude [m] of the triangle P (3, 2 or 3)."""
+    P = np.column_stack([P, np.zeros(3)]) if P.shape[1] == 2 else P
+    area2 = np.linalg.norm(np.cross(P[1] - P[0], P[2] - P[0]))
+    return area2 / max(np.linalg.norm(P[(i + 1) % 3] - P[i]) for i in range(3))
+
+
+@pytest.mark.parametrize("case", sorted(degenerate_triangles()))
+def test_membrane_derivatives_on_degenerate_triangles(case):
+    """One triangle nearly collinear, nearly of zero area, inverted, ...:
+    the membrane gradient, its exact Hessian and dF/dX still match central
+    differences (steps a small fraction of the smallest altitude: the rest
+    shape's inverse grows as 1/altitude, and so do F's derivatives)."""
+    X, x = degenerate_triangles()[case]
+    model = ClothModel(GarmentMesh(X=X, tris=np.array([[0, 1, 2]], dtype=np.int32)), FABRIC, Scene(gravity=False))
+    hx = hX = 1e-5 * _altitude(X)  # F = Ds Dm⁻¹ moves by h / altitude
+    f = model.forces(x, ["membrane"])
+    check_gradient(lambda y: model.energy(y, ["membrane"]), -f, x, h=hx, rtol=1e-6, floor=np.abs(f).max(), what=case)
+    H = model.stiffness(x, ["membrane"], project=False)
+    check_hessian(lambda y: -model.forces(y, ["membrane"]), H, x, h=hx, rtol=1e-6, floor=np.abs(H).max(), what=case)
+
+    def forces_at(Xp):
+        return ClothModel(GarmentMesh(X=Xp, tris=model.tris), FABRIC, Scene(gravity=False)).forces(x, ["membrane"])
+
+    check_jacobian(forces_at, lambda d: model.dforces_dX(x, d, ["membrane"]), X, h=hX, rtol=1e-6, what=f"{case} dF/dX")
+
+
+@pytest.mark.parametrize("case", ["sliver rest", "needle rest", "regular"])
+def test_bending_dforces_dX_on_a_degenerate_hinge(case):
+    """A hinge of two triangles, one wing a degenerate rest shape: the bending
+    weights' exact derivative (1/area terms) against central differences."""
+    X3, _ = degenerate_triangles()[case]
+    # the second wing mirrored across the edge 0-1 (y -> -y), a regular triangle
+    X = np.vstack([X3, [[0.55 * X3[1, 0], -0.8 * X3[1, 0]]]])
+    tris = np.array([[0, 1, 2], [1, 0, 3]], dtype=np.int32)
+    model = ClothModel(GarmentMesh(X=X, tris=tris), FABRIC, Scene(gravity=False))
+    assert len(model.bend_stencils) == 1
+    rng = np.random.default_rng(3)
+    x = np.column_stack([X[:, 0], 0.3 * X[:, 0] * X[:, 1] * 40, X[:, 1]]) + 1e-3 * rng.normal(size=(4, 3))
+
+    def forces_at(Xp):
+        return ClothModel(GarmentMesh(X=Xp, tris=tris), FABRIC, Scene(gravity=False)).forces(x, ["bending"])
+
+    check_jacobian(
+        forces_at,
+        lambda d: model.dforces_dX(x, d, ["bending"]),
+        X,
+        h=1e-5 * _altitude(X3),
+        rtol=1e-6,
+        what=f"{case} bending dF/dX",
+    )
+
+
+def test_contact_derivatives_at_the_contact_layer_boundary():
+    """Vertices just outside and inside the contact layer's boundary and either
+    side of the stiffness ramp's end (contact_penetrations): gradient and
+    exact Hessian of the contact term against central differences."""
+    body = PlaneBody(point=np.zeros(3), normal=np.array([0.0, 0.0, 1.0]))
+    scene = Scene(body=body, contact_offset=0.01, friction=False)
+    model, x = model_and_state(scene)
+    h = 1e-7
+    pens = contact_penetrations(model.contact_smoothing, h)
+    x = x.copy()
+    x[:, 2] = 0.01 - pens[np.arange(model.n) % len(pens)]  # phi = z: penetration 0.01 - z
+    fd_gradient_check(model, x, "contact", h=h)
+    fd_hessian_check(model, x, "contact", h=h, project=False)

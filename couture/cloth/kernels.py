@@ -245,67 +245,87 @@ def membrane_stiffness(x, tris, Dminv, area, mu, lam, project, tri_slots, blk_ba
                             data[base + i * st + j] += blk[j, i]
 
 
+@njit(cache=True, inline="always")
+def _rest_shape_change(Dminv, t, A, dDm, tmp, dDi):
+    """dDi (2, 2) = d(Dminv) = -Dminv dDm Dminv of triangle t (area A) for a
+    change dDm = [dX1-dX0, dX2-dX0] (columns) of its rest edges; returns dA =
+    A tr(Dminv dDm). ``tmp`` (2, 2): scratch."""
+    for k in range(2):
+        for l in range(2):
+            tmp[k, l] = Dminv[t, k, 0] * dDm[0, l] + Dminv[t, k, 1] * dDm[1, l]
+    for k in range(2):
+        for l in range(2):
+            dDi[k, l] = -(tmp[k, 0] * Dminv[t, 0, l] + tmp[k, 1] * Dminv[t, 1, l])
+    return A * (tmp[0, 0] + tmp[1, 1])
+
+
+@njit(cache=True, inline="always")
+def _membrane_dforce(x, tris, t, A, dA, mu, lam, b, F, S, dDi, db, dF, dE, dS, dP):
+    """dP (3, 3): dP[a] = d(A F S b_a), minus the change of triangle t's
+    membrane force on its vertex a, for the rest-shape change (dDi, dA) of
+    ``_rest_shape_change``; b, F, S of the triangle at x
+    (``_shape_vectors``, ``_deformation``, ``_stress``).
+
+    f_a = -A F S b_a with A, b_a (hence F) functions of X: dF = Ds dDminv,
+    dE = sym(F^T dF), dS = 2 mu dE + lam tr(dE) I,
+    d(A F S b_a) = dA F S b_a + A (dF S b_a + F dS b_a + F S db_a).
+    db, dF, dE, dS: scratch."""
+    db[1, 0], db[1, 1] = dDi[0, 0], dDi[0, 1]
+    db[2, 0], db[2, 1] = dDi[1, 0], dDi[1, 1]
+    db[0, 0], db[0, 1] = -db[1, 0] - db[2, 0], -db[1, 1] - db[2, 1]
+    _deformation(x, tris, t, db, dF)
+    for k in range(2):
+        for l in range(2):
+            c = 0.0
+            for i in range(3):
+                c += F[i, k] * dF[i, l] + dF[i, k] * F[i, l]
+            dE[k, l] = 0.5 * c
+    trd = dE[0, 0] + dE[1, 1]
+    for k in range(2):
+        for l in range(2):
+            dS[k, l] = 2.0 * mu * dE[k, l] + (lam * trd if k == l else 0.0)
+    for a in range(3):
+        for i in range(3):
+            acc = 0.0
+            for k in range(2):
+                Sb = S[k, 0] * b[a, 0] + S[k, 1] * b[a, 1]
+                dSb = dS[k, 0] * b[a, 0] + dS[k, 1] * b[a, 1]
+                Sdb = S[k, 0] * db[a, 0] + S[k, 1] * db[a, 1]
+                acc += dA * F[i, k] * Sb + A * (dF[i, k] * Sb + F[i, k] * dSb + F[i, k] * Sdb)
+            dP[a, i] = acc
+
+
+@njit(cache=True, inline="always")
+def _membrane_dforce_scratch():
+    """Scratch arrays of ``_rest_shape_change`` and ``_membrane_dforce`` for
+    their callers: b, db, F, dF (3, 2); E, S, dE, dS, dDm, dDi, tmp (2, 2);
+    dP (3, 3)."""
+    v32 = np.empty((4, 3, 2))
+    v22 = np.empty((7, 2, 2))
+    return v32[0], v32[1], v32[2], v32[3], v22[0], v22[1], v22[2], v22[3], v22[4], v22[5], v22[6], np.empty((3, 3))
+
+
 @njit(cache=True)
 def membrane_dforces_dX(x, X, dX, tris, Dminv, area, mu, lam, df):
-    """df (n, 3) += d/de f_membrane(x; X + e dX) at e = 0 (analytic).
-
-    f_a = -A F S b_a with A, b_a (hence F) functions of X:
-    dDm = [dX1-dX0, dX2-dX0], dDminv = -Dminv dDm Dminv, dA = A tr(Dminv dDm),
-    dF = Ds dDminv, dE = sym(F^T dF), dS = 2 mu dE + lam tr(dE) I.
-    """
-    b = np.empty((3, 2))
-    db = np.empty((3, 2))
-    F = np.empty((3, 2))
-    dF = np.empty((3, 2))
-    E = np.empty((2, 2))
-    S = np.empty((2, 2))
-    dE = np.empty((2, 2))
-    dS = np.empty((2, 2))
-    dDm = np.empty((2, 2))
-    dDi = np.empty((2, 2))
-    tmp = np.empty((2, 2))
+    """df (n, 3) += d/de f_membrane(x; X + e dX) at e = 0 (analytic:
+    ``_rest_shape_change`` and ``_membrane_dforce``, which
+    ``membrane_gravity_dX_blocks`` assembles as a matrix)."""
+    b, db, F, dF, E, S, dE, dS, dDm, dDi, tmp, dP = _membrane_dforce_scratch()
     for t in range(tris.shape[0]):
         i0, i1, i2 = tris[t, 0], tris[t, 1], tris[t, 2]
         for k in range(2):
             dDm[k, 0] = dX[i1, k] - dX[i0, k]
             dDm[k, 1] = dX[i2, k] - dX[i0, k]
-        # tmp = Dminv dDm ; dDi = -tmp Dminv
-        for k in range(2):
-            for l in range(2):
-                tmp[k, l] = Dminv[t, k, 0] * dDm[0, l] + Dminv[t, k, 1] * dDm[1, l]
-        for k in range(2):
-            for l in range(2):
-                dDi[k, l] = -(tmp[k, 0] * Dminv[t, 0, l] + tmp[k, 1] * Dminv[t, 1, l])
         A = area[t]
-        dA = A * (tmp[0, 0] + tmp[1, 1])
+        dA = _rest_shape_change(Dminv, t, A, dDm, tmp, dDi)
         _shape_vectors(Dminv, t, b)
-        db[1, 0], db[1, 1] = dDi[0, 0], dDi[0, 1]
-        db[2, 0], db[2, 1] = dDi[1, 0], dDi[1, 1]
-        db[0, 0], db[0, 1] = -db[1, 0] - db[2, 0], -db[1, 1] - db[2, 1]
         _deformation(x, tris, t, b, F)
-        _deformation(x, tris, t, db, dF)
         _stress(F, mu, lam, E, S)
-        for k in range(2):
-            for l in range(2):
-                c = 0.0
-                for i in range(3):
-                    c += F[i, k] * dF[i, l] + dF[i, k] * F[i, l]
-                dE[k, l] = 0.5 * c
-        trd = dE[0, 0] + dE[1, 1]
-        for k in range(2):
-            for l in range(2):
-                dS[k, l] = 2.0 * mu * dE[k, l] + (lam * trd if k == l else 0.0)
+        _membrane_dforce(x, tris, t, A, dA, mu, lam, b, F, S, dDi, db, dF, dE, dS, dP)
         for a in range(3):
             v = tris[t, a]
             for i in range(3):
-                # d(A F S b_a) = dA F S b_a + A (dF S b_a + F dS b_a + F S db_a)
-                acc = 0.0
-                for k in range(2):
-                    Sb = S[k, 0] * b[a, 0] + S[k, 1] * b[a, 1]
-                    dSb = dS[k, 0] * b[a, 0] + dS[k, 1] * b[a, 1]
-                    Sdb = S[k, 0] * db[a, 0] + S[k, 1] * db[a, 1]
-                    acc += dA * F[i, k] * Sb + A * (dF[i, k] * Sb + F[i, k] * dSb + F[i, k] * Sdb)
-                df[v, i] -= acc
+                df[v, i] -= dP[a, i]
 
 
 # --------------------------------------------------------------------------
@@ -403,26 +423,110 @@ def bending_stencil_weights_dir(X, st, e, d0x, d0y, d1x, d1y, d2x, d2y, d3x, d3y
     return fac, -fac * (dA0 + dA1) / (A0 + A1)
 
 
+@njit(cache=True, inline="always")
+def _bending_dforce(x, st, e, coef0, fac, dfac, w, dw, dP):
+    """dP (4, 3): dP[a] = d(c fac K_a (K·x)), minus the change of stencil e's
+    bending force on its vertex a, c = coef0, for the rest-shape change whose
+    (fac, dfac, w = K, dw = dK) ``bending_stencil_weights_dir`` gave."""
+    for c in range(3):
+        s = 0.0
+        ds = 0.0
+        for a in range(4):
+            s += w[a] * x[st[e, a], c]
+            ds += dw[a] * x[st[e, a], c]
+        for a in range(4):
+            dP[a, c] = coef0 * (dfac * w[a] * s + fac * (dw[a] * s + w[a] * ds))
+
+
 @njit(cache=True)
 def bending_dforces_dX(x, X, dX, st, coef0, df):
     """df (n, 3) += d/de f_bending(x; X + e dX) at e = 0, without assembling a
     matrix: f_bending = -Σ_e c fac_e K_e (K_e·x) with c = coef0 = k_b · BEND_CONSTANT,
-    each stencil's K and fac differentiated exactly (``bending_stencil_weights_dir``)."""
+    each stencil's K and fac differentiated exactly (``bending_stencil_weights_dir``,
+    ``_bending_dforce``)."""
     w = np.empty(4)
     dw = np.empty(4)
+    dP = np.empty((4, 3))
     for e in range(st.shape[0]):
         i0, i1, i2, i3 = st[e, 0], st[e, 1], st[e, 2], st[e, 3]
         fac, dfac = bending_stencil_weights_dir(
             X, st, e, dX[i0, 0], dX[i0, 1], dX[i1, 0], dX[i1, 1], dX[i2, 0], dX[i2, 1], dX[i3, 0], dX[i3, 1], w, dw
         )
+        _bending_dforce(x, st, e, coef0, fac, dfac, w, dw, dP)
         for c in range(3):
-            s = 0.0
-            ds = 0.0
             for a in range(4):
-                s += w[a] * x[st[e, a], c]
-                ds += dw[a] * x[st[e, a], c]
-            for a in range(4):
-                df[st[e, a], c] -= coef0 * (dfac * w[a] * s + fac * (dw[a] * s + w[a] * ds))
+                df[st[e, a], c] -= dP[a, c]
+
+
+# The matrix form of the two dF/dX kernels above, for couture.sensitivity.dfdx.
+# They stay in this file: numba's cache recompiles a function when its own
+# file changes, not when a helper it inlines from another file does.
+
+
+@njit(cache=True)
+def membrane_gravity_dX_blocks(x, tris, Dminv, area, mu, lam, membrane, rho_g3, tri_slots, data):
+    """∂F/∂X as a matrix (``couture.sensitivity.dfdx``): data[slot(v, u)]
+    (3, 2) += ∂f_v/∂X_u of the membrane (if ``membrane``)
+    and gravity (weight ``rho_g3`` = ρ g / 3 per unit area; 0: none) of every
+    triangle. The per-triangle force is linear in dDm = [dX1-dX0, dX2-dX0]:
+    four probes (the entries of dDm) give it, each by the kernels of
+    ``membrane_dforces_dX`` (``_rest_shape_change``, ``_membrane_dforce``)."""
+    b, db, F, dF, E, S, dE, dS, dDm, dDi, tmp, dP = _membrane_dforce_scratch()
+    g = np.empty((4, 3, 3))  # g[probe, a, i]: ∂f_{a,i}/∂dDm[probe]
+    for t in range(tris.shape[0]):
+        A = area[t]
+        _shape_vectors(Dminv, t, b)
+        _deformation(x, tris, t, b, F)
+        _stress(F, mu, lam, E, S)
+        for p in range(4):
+            dDm[:, :] = 0.0
+            dDm[p // 2, p % 2] = 1.0
+            dA = _rest_shape_change(Dminv, t, A, dDm, tmp, dDi)
+            for a in range(3):
+                for i in range(3):
+                    g[p, a, i] = 0.0
+                g[p, a, 1] -= rho_g3 * dA
+            if not membrane:
+                continue
+            _membrane_dforce(x, tris, t, A, dA, mu, lam, b, F, S, dDi, db, dF, dE, dS, dP)
+            for a in range(3):
+                for i in range(3):
+                    g[p, a, i] -= dP[a, i]
+        # dDm[k, 0] = dX1k - dX0k, dDm[k, 1] = dX2k - dX0k: probe p = 2k + col
+        for a in range(3):
+            for c in range(3):
+                s = tri_slots[t, a, c]
+                for k in range(2):
+                    if c == 0:
+                        for i in range(3):
+                            data[s, i, k] -= g[2 * k, a, i] + g[2 * k + 1, a, i]
+                    else:
+                        for i in range(3):
+                            data[s, i, k] += g[2 * k + c - 1, a, i]
+
+
+@njit(cache=True)
+def bending_dX_blocks(x, X, st, coef0, bend_slots, data):
+    """∂F/∂X as a matrix (``couture.sensitivity.dfdx``): data[slot(v, u)]
+    (3, 2) += ∂f_v/∂X_u of the bending term
+    f = -Σ_e c fac_e K_e (K_e·x), c = ``coef0``: the exact derivative of each
+    stencil's K and fac (``bending_stencil_weights_dir``, ``_bending_dforce``,
+    as ``bending_dforces_dX``), one probe per stencil vertex and material axis."""
+    w = np.empty(4)
+    dw = np.empty(4)
+    dP = np.empty((4, 3))
+    d = np.zeros(8)
+    for e in range(st.shape[0]):
+        for q in range(4):
+            for k in range(2):
+                d[:] = 0.0
+                d[2 * q + k] = 1.0  # vertex q of the stencil moves along material axis k
+                fac, dfac = bending_stencil_weights_dir(X, st, e, d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], w, dw)
+                _bending_dforce(x, st, e, coef0, fac, dfac, w, dw, dP)
+                for a in range(4):
+                    slot = bend_slots[e, a, q]
+                    for c in range(3):
+                        data[slot, c, k] -= dP[a, c]
 
 
 @njit(cache=True)

@@ -12,8 +12,10 @@ seam stencils); a press is then one sparse product with Ψ.
 Terms, as in ``ClothModel.dforces_dX`` (the same derivatives, so the two
 agree to round-off; seams, contact and friction do not depend on X):
 membrane and gravity analytic, bending by the exact derivative of each
-stencil's weights K and factor 3 / (A0 + A1)
-(``couture.cloth.kernels.bending_stencil_weights_dir``).
+stencil's weights K and factor 3 / (A0 + A1), by the kernels
+(``couture.cloth.kernels.membrane_gravity_dX_blocks``,
+``bending_dX_blocks``) that share their per-triangle and per-stencil math
+with ``membrane_dforces_dX`` and ``bending_dforces_dX``.
 """
 
 from __future__ import annotations
@@ -22,141 +24,9 @@ import time
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit
 
-from couture.cloth.kernels import bending_stencil_weights_dir
+from couture.cloth.kernels import bending_dX_blocks, membrane_gravity_dX_blocks
 from couture.cloth.model import BEND_CONSTANT, GRAVITY, ClothModel
-
-
-@njit(cache=True)
-def _membrane_gravity_blocks(x, tris, Dminv, area, mu, lam, membrane, rho_g3, tri_slots, data):
-    """data[slot(v, u)] (3, 2) += ∂f_v/∂X_u of the membrane (if ``membrane``)
-    and gravity (weight ``rho_g3`` = ρ g / 3 per unit area; 0: none) of every
-    triangle. The per-triangle force is linear in dDm = [dX1-dX0, dX2-dX0]:
-    four probes (the entries of dDm) give it, as ``membrane_dforces_dX``
-    computes it for one dX."""
-    b = np.empty((3, 2))
-    db = np.empty((3, 2))
-    F = np.empty((3, 2))
-    dF = np.empty((3, 2))
-    E = np.empty((2, 2))
-    S = np.empty((2, 2))
-    dE = np.empty((2, 2))
-    dS = np.empty((2, 2))
-    dDm = np.empty((2, 2))
-    dDi = np.empty((2, 2))
-    tmp = np.empty((2, 2))
-    g = np.empty((4, 3, 3))  # g[probe, a, i]: ∂f_{a,i}/∂dDm[probe]
-    for t in range(tris.shape[0]):
-        A = area[t]
-        b[1, 0] = Dminv[t, 0, 0]
-        b[1, 1] = Dminv[t, 0, 1]
-        b[2, 0] = Dminv[t, 1, 0]
-        b[2, 1] = Dminv[t, 1, 1]
-        b[0, 0] = -b[1, 0] - b[2, 0]
-        b[0, 1] = -b[1, 1] - b[2, 1]
-        F[:, :] = 0.0
-        for a in range(3):
-            v = tris[t, a]
-            for i in range(3):
-                for k in range(2):
-                    F[i, k] += x[v, i] * b[a, k]
-        for k in range(2):
-            for l in range(2):
-                c = 0.0
-                for i in range(3):
-                    c += F[i, k] * F[i, l]
-                E[k, l] = 0.5 * (c - (1.0 if k == l else 0.0))
-        tr = E[0, 0] + E[1, 1]
-        for k in range(2):
-            for l in range(2):
-                S[k, l] = 2.0 * mu * E[k, l] + (lam * tr if k == l else 0.0)
-        for p in range(4):
-            dDm[:, :] = 0.0
-            dDm[p // 2, p % 2] = 1.0
-            for k in range(2):
-                for l in range(2):
-                    tmp[k, l] = Dminv[t, k, 0] * dDm[0, l] + Dminv[t, k, 1] * dDm[1, l]
-            for k in range(2):
-                for l in range(2):
-                    dDi[k, l] = -(tmp[k, 0] * Dminv[t, 0, l] + tmp[k, 1] * Dminv[t, 1, l])
-            dA = A * (tmp[0, 0] + tmp[1, 1])
-            for a in range(3):
-                for i in range(3):
-                    g[p, a, i] = 0.0
-                g[p, a, 1] -= rho_g3 * dA
-            if not membrane:
-                continue
-            db[1, 0], db[1, 1] = dDi[0, 0], dDi[0, 1]
-            db[2, 0], db[2, 1] = dDi[1, 0], dDi[1, 1]
-            db[0, 0], db[0, 1] = -db[1, 0] - db[2, 0], -db[1, 1] - db[2, 1]
-            dF[:, :] = 0.0
-            for a in range(3):
-                v = tris[t, a]
-                for i in range(3):
-                    for k in range(2):
-                        dF[i, k] += x[v, i] * db[a, k]
-            for k in range(2):
-                for l in range(2):
-                    c = 0.0
-                    for i in range(3):
-                        c += F[i, k] * dF[i, l] + dF[i, k] * F[i, l]
-                    dE[k, l] = 0.5 * c
-            trd = dE[0, 0] + dE[1, 1]
-            for k in range(2):
-                for l in range(2):
-                    dS[k, l] = 2.0 * mu * dE[k, l] + (lam * trd if k == l else 0.0)
-            for a in range(3):
-                for i in range(3):
-                    acc = 0.0
-                    for k in range(2):
-                        Sb = S[k, 0] * b[a, 0] + S[k, 1] * b[a, 1]
-                        dSb = dS[k, 0] * b[a, 0] + dS[k, 1] * b[a, 1]
-                        Sdb = S[k, 0] * db[a, 0] + S[k, 1] * db[a, 1]
-                        acc += dA * F[i, k] * Sb + A * (dF[i, k] * Sb + F[i, k] * dSb + F[i, k] * Sdb)
-                    g[p, a, i] -= acc
-        # dDm[k, 0] = dX1k - dX0k, dDm[k, 1] = dX2k - dX0k: probe p = 2k + col
-        for a in range(3):
-            for c in range(3):
-                s = tri_slots[t, a, c]
-                for k in range(2):
-                    if c == 0:
-                        for i in range(3):
-                            data[s, i, k] -= g[2 * k, a, i] + g[2 * k + 1, a, i]
-                    else:
-                        for i in range(3):
-                            data[s, i, k] += g[2 * k + c - 1, a, i]
-
-
-@njit(cache=True)
-def _bending_blocks(x, X, st, coef0, bend_slots, data):
-    """data[slot(v, u)] (3, 2) += ∂f_v/∂X_u of the bending term
-    f = -Σ_e c fac_e K_e (K_e·x), c = ``coef0``: the exact derivative of each
-    stencil's K and fac (``bending_stencil_weights_dir``, as
-    ``bending_dforces_dX``), one probe per stencil vertex and material axis."""
-    w = np.empty(4)
-    dw = np.empty(4)
-    s = np.empty(3)
-    ds = np.empty(3)
-    d = np.zeros(8)
-    for e in range(st.shape[0]):
-        for q in range(4):
-            for k in range(2):
-                d[:] = 0.0
-                d[2 * q + k] = 1.0  # vertex q of the stencil moves along material axis k
-                fac, dfac = bending_stencil_weights_dir(X, st, e, d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], w, dw)
-                for c in range(3):
-                    acc = 0.0
-                    dacc = 0.0
-                    for a in range(4):
-                        acc += w[a] * x[st[e, a], c]
-                        dacc += dw[a] * x[st[e, a], c]
-                    s[c] = acc
-                    ds[c] = dacc
-                for a in range(4):
-                    slot = bend_slots[e, a, q]
-                    for c in range(3):
-                        data[slot, c, k] -= coef0 * (dfac * w[a] * s[c] + fac * (dw[a] * s[c] + w[a] * ds[c]))
 
 
 class DForcesDX:
@@ -179,7 +49,7 @@ class DForcesDX:
         terms = model.terms if terms is None else model._check_terms(terms)
         rho_g3 = GRAVITY * model.area_density / 3.0 if "gravity" in terms else 0.0
         if "membrane" in terms or rho_g3:
-            _membrane_gravity_blocks(
+            membrane_gravity_dX_blocks(
                 x,
                 model.tris,
                 model.Dminv,
@@ -192,7 +62,7 @@ class DForcesDX:
                 data,
             )
         if "bending" in terms and len(model.bend_stencils) and model.bend_stiffness:
-            _bending_blocks(
+            bending_dX_blocks(
                 x,
                 np.ascontiguousarray(model.X, dtype=np.float64),
                 model.bend_stencils,
