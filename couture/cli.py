@@ -326,13 +326,19 @@ def bodies_command(args: argparse.Namespace) -> int:
 
     if args.bodies_cmd == "make":
         from couture.bodies.make import make_graded
+        from couture.pattern.sections import write_body_sections
 
         table = None
         if args.measure is not None:
             if len(args.names) != 1:
                 raise ValueError("--measure makes one body: give exactly one NAME")
             table = {args.names[0]: dict(zip(MEASURES, args.measure, strict=True))}
-        make_graded(Path(args.out) if args.out else bodies.BODIES_DIR, args.names or None, table=table)
+        make_graded(
+            Path(args.out) if args.out else bodies.BODIES_DIR,
+            args.names or None,
+            table=table,
+            write_sections=write_body_sections,
+        )
         bodies.index.cache_clear()
     rows = bodies.table()
     if getattr(args, "json", False):
