@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from couture.bench.drape_slopers import coarse_mesh
+from bench.drape_slopers import coarse_mesh
 from couture.cloth.body import SphereBody, load_mannequin_sdf
 from couture.cloth.model import ClothModel, Scene
 from couture.solvers.service import solve_tryon
