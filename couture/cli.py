@@ -8,13 +8,11 @@ import importlib
 import json
 import logging
 import math
-import pkgutil
 import shutil
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import couture.bench
 from couture.solvers import SOLVERS
 
 if TYPE_CHECKING:
@@ -24,8 +22,36 @@ if TYPE_CHECKING:
 DEFAULT_UI_PORT = 8080
 """where ``couture up`` serves its UI page when that port is free"""
 
-BENCHES = sorted(m.name for m in pkgutil.iter_modules(couture.bench.__path__))
-"""every module of couture.bench is a benchmark with a main(argv)"""
+BENCH_DIR = Path(__file__).resolve().parents[1] / "bench"
+"""the benchmarks (package ``bench``, one module each): in the repository checkout
+that couture runs from, never installed with it nor imported by it"""
+
+
+def benches() -> list[str]:
+    """Every benchmark's name (a module of bench/ with a main(argv)); none outside a checkout."""
+    return sorted(p.stem for p in BENCH_DIR.glob("*.py") if not p.name.startswith("_"))
+
+
+def run_bench(name: str, argv: list[str]) -> int:
+    """``couture bench NAME ARGS``: ``bench.NAME.main(ARGS)``, the package found
+    beside couture/ (the checkout's root goes on sys.path, as ``python -m
+    bench.NAME`` run there would have it)."""
+    if not (BENCH_DIR / "__init__.py").is_file():
+        raise RuntimeError(
+            f"the benchmarks are not installed with couture: run `couture bench` from a repository "
+            f"checkout with its editable install (no {BENCH_DIR})"
+        )
+    if name not in benches():
+        raise RuntimeError(f"no benchmark {name!r} in {BENCH_DIR}; choose from {benches()}")
+    root = str(BENCH_DIR.parent)
+    if root not in sys.path:
+        sys.path.insert(0, root)
+    mod = importlib.import_module(f"bench.{name}")
+    if Path(mod.__file__ or "").resolve().parent != BENCH_DIR:
+        raise RuntimeError(f"bench.{name} was imported from {mod.__file__}, not from {BENCH_DIR}")
+    if not hasattr(mod, "main"):
+        raise RuntimeError(f"benchmark {name!r} is not available yet (bench/{name}.py has no main)")
+    return int(mod.main(argv) or 0)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -86,7 +112,7 @@ def _parser() -> argparse.ArgumentParser:
         metavar="NAME",
         help="solver nodes to run in place of the graph's (a name of couture.solvers.SOLVERS each; several for "
         "side-by-side comparison; the default graph runs newton: the accuracy reference, and the fastest to a "
-        "converged fine drape after an edit, bench/results/edit_pattern*.json)",
+        "converged fine drape after an edit, bench/results/edit_pattern.json)",
     )
     up.add_argument(
         "--only",
@@ -354,7 +380,7 @@ def _parser() -> argparse.ArgumentParser:
     bp = sub.add_parser(
         "bench", help="benchmarks: NAME writes NAME.json (and its plots) to --out DIR (default bench/results/)"
     )
-    bp.add_argument("which", choices=BENCHES)
+    bp.add_argument("which", choices=benches() or None, help="the benchmark (a module of bench/)")
     bp.add_argument("args", nargs=argparse.REMAINDER, help="passed to the benchmark, e.g. --out DIR")
     return p
 
@@ -365,13 +391,19 @@ def bodies_command(args: argparse.Namespace) -> int:
 
     if args.bodies_cmd == "make":
         from couture.bodies.make import make_graded
+        from couture.pattern.sections import write_body_sections
 
         table = None
         if args.measure is not None:
             if len(args.names) != 1:
                 raise ValueError("--measure makes one body: give exactly one NAME")
             table = {args.names[0]: dict(zip(MEASURES, args.measure, strict=True))}
-        make_graded(Path(args.out) if args.out else bodies.BODIES_DIR, args.names or None, table=table)
+        make_graded(
+            Path(args.out) if args.out else bodies.BODIES_DIR,
+            args.names or None,
+            table=table,
+            write_sections=write_body_sections,
+        )
         bodies.index.cache_clear()
     rows = bodies.table()
     if getattr(args, "json", False):
@@ -498,19 +530,7 @@ def _dispatch(args: argparse.Namespace) -> int:
         return bodies_command(args)
 
     if args.cmd == "bench":
-        try:
-            mod = importlib.import_module(f"couture.bench.{args.which}")
-        except ModuleNotFoundError as e:
-            if e.name and e.name.startswith("couture.bench"):
-                raise RuntimeError(
-                    f"benchmark {args.which!r} is not available yet (no couture.bench.{args.which})"
-                ) from None
-            raise
-        if not hasattr(mod, "main"):
-            raise RuntimeError(
-                f"benchmark {args.which!r} is not available yet (couture.bench.{args.which} has no main)"
-            )
-        return int(mod.main(args.args) or 0)
+        return run_bench(args.which, args.args)
     raise AssertionError(args.cmd)
 
 
@@ -938,9 +958,8 @@ def export_pattern(args: argparse.Namespace) -> int:
 def adjust(args: argparse.Namespace) -> int:
     """``couture adjust``: see its --help."""
     from couture.adjust.pipeline import plot_case, write_outputs
-    from couture.bench.adjust import run_on_bus, solver_session
     from couture.bus import bus_config_from_args
-    from couture.client import load_design
+    from couture.client import adjust_on_bus, load_design, solver_session
 
     design = load_design(args.pattern)
     edit, amount = ("hem", args.hem) if args.hem is not None else ("waist", args.waist)
@@ -957,7 +976,7 @@ def adjust(args: argparse.Namespace) -> int:
         logging.getLogger().setLevel(logging.WARNING)  # ezdxf and the supervisor log at INFO
     with solver_session(solvers, bus if bus.connect else None, log_file=str(out / "nodes.log")) as (client, names):
         print(f"[adjust] solves go to {', '.join(names)}", file=sys.stderr, flush=True)
-        case, counts = run_on_bus(
+        case, counts = adjust_on_bus(
             client,
             names,
             design,

@@ -14,14 +14,17 @@ which names the element and the reason.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import queue
 import threading
 import time
 import uuid
 from collections import OrderedDict
+from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 import msgspec
 import numpy as np
@@ -730,3 +733,60 @@ class SolveFanout:
             wall_time_s=float(res.wall_time_s),
             diagnosis=res.diagnosis,
         )
+
+
+@contextlib.contextmanager
+def solver_session(
+    solvers: list[str], bus: BusConfig | None = None, *, log_file: str | None = None, timeout: float = 90.0
+) -> Iterator[tuple[Client, list[str]]]:
+    """A client and the names of the solver nodes it may ask: with ``bus.connect``,
+    the live ``solver-*`` nodes of that session (``solvers`` names them when
+    given); otherwise one solver node per entry of ``solvers`` (a registry name,
+    couture.solvers.SOLVERS; a name twice gets two processes), started here under
+    a supervisor (node logs to ``log_file``) and stopped on exit."""
+    from couture import supervisor
+    from couture.bus import free_port
+
+    if bus is not None and bus.connect:
+        with Client(bus=bus) as c:
+            live = sorted(n for n in c.live_nodes(timeout=2.0) if n.startswith("solver"))
+            names = [s if s.startswith("solver") else f"solver-{s}" for s in solvers] if solvers else live
+            missing = [n for n in names if n not in live]
+            if missing or not names:
+                raise RuntimeError(f"solver nodes {missing or 'any'} not live on session {bus.session} (live: {live})")
+            yield c, names
+        return
+    if not solvers:
+        raise ValueError("solver_session needs at least one solver to start (or a bus to connect to)")
+    names, specs = [], []
+    for i, s in enumerate(solvers):
+        name = f"solver-{s}" if solvers.count(s) == 1 else f"solver-{s}{i}"
+        names.append(name)
+        specs.append(supervisor.NodeSpec(name, "nodes.solver", ["--solver", s]))
+    cfg = bus or BusConfig(session=f"adjust{int(time.time() * 1000) % 10**8}")
+    if not cfg.listen:
+        cfg = replace(cfg, listen=[f"tcp/127.0.0.1:{free_port()}"])
+    with supervisor.Supervisor(supervisor.SupervisorConfig(bus=cfg, nodes=specs, child_log=log_file)) as sup:
+        with Client(bus=sup.child_bus) as c:
+            c.wait_nodes(names, timeout=timeout)
+            yield c, names
+
+
+def adjust_on_bus(
+    client: Client, names: list[str], design: Design, edit: str, amount: float, **kw: Any
+) -> tuple[Any, dict[str, int]]:
+    """Pattern adjustment (couture.adjust.pipeline.run_case: ``edit`` 'hem' or
+    'waist' by ``amount`` [m], ``kw`` its options) with every solve a request to
+    the solver nodes ``names`` (:class:`SolveFanout`, ``max_seconds`` per solve,
+    default 60 s). Returns the case and how many solves each node answered."""
+    from couture.adjust.pipeline import run_case
+
+    fans: list[SolveFanout] = []
+    max_seconds = kw.pop("max_seconds", 60.0)
+
+    def simulate_for(mesh: GarmentMesh) -> SolveFanout:
+        fans.append(SolveFanout(client, mesh, design, names, max_seconds=max_seconds))
+        return fans[-1]
+
+    case = run_case(design, edit, amount, simulate_for, **kw)
+    return case, (fans[-1].counts if fans else {})

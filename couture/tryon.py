@@ -1,8 +1,9 @@
 """Try-on manipulation (Meng et al. 2010 §6): move, rotate, fix and drag
 pattern pieces around the body, and sequential sewing.
 
-Pure functions on a placed garment (no bus code; the solver node applies
-them through :class:`TryOn`, ``couture/tryon/v1`` messages carry them):
+Pure functions on a placed garment (no bus code, no solver: the solver node
+applies them through :class:`TryOn`, ``couture/tryon/v1`` messages carry them,
+and :func:`couture.solvers.service.solve_tryon` solves a try-on state):
 
 * :func:`move` translates a panel, :func:`rotate` turns it rigidly about an
   axis through its centroid (or any point);
@@ -396,17 +397,3 @@ class TryOn:
             seam_weights=self.mesh.seam_weights[m],
             pinned=self.pinned(),
         )
-
-
-def solve(state: TryOn, fabric, scene, solver="newton", **opts):
-    """Solve ``state`` to equilibrium from its positions with a solver of
-    couture.solvers (a name or an instance); the state takes the result's x.
-    Returns the SolveResult."""
-    from couture.cloth.model import ClothModel
-    from couture.solvers import get_solver
-
-    s = get_solver(solver) if isinstance(solver, str) else solver
-    model = ClothModel(state.model_mesh(), fabric, scene)
-    r = s.solve(model, state.x.copy(), **opts)
-    state.x = np.array(r.x, dtype=np.float64)
-    return r

@@ -195,8 +195,7 @@ def test_adjustment_over_two_solver_processes_matches_one_and_beats_flattening(s
     drape is closer to the target than the flattening-only one's."""
     from couture.adjust import adjust
     from couture.adjust.pipeline import make_target
-    from couture.bench.adjust import solver_session
-    from couture.client import SolveFanout
+    from couture.client import SolveFanout, solver_session
 
     design, mesh, x = skirt
     target = make_target("hem", -0.15, x, mesh.tris).x

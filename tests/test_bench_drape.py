@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from couture.bench import drape as bench
+from bench import drape as bench
 
 pytestmark = pytest.mark.timeout(300)
 

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from couture.bench import extremes as ex
+from bench import extremes as ex
 
 GRID = (11, 4)
 """a tiny strip: the worker's cases take a fraction of a second"""

@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from couture.bench import gmls
+from bench import gmls
 
 
 @pytest.fixture(scope="module")

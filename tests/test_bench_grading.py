@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from couture.bench import grading
+from bench import grading
 
 
 def test_principal_stretches_match_a_known_deformation():

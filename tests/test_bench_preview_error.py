@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import math
 
-from couture.bench import preview_error
+from bench import preview_error
 
 
 def test_preview_error_bench_writes_estimates_and_true_errors(tmp_path):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from couture.bench import terms
+from bench import terms
 
 
 def test_a_sheet_without_a_body_builds_no_contact_and_the_extra_terms_change_nothing(tmp_path):

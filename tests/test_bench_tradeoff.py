@@ -8,7 +8,7 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
-from couture.bench import tradeoff, write_results
+from bench import tradeoff, write_results
 
 TOLS = (1e-2, 1e-4)
 

@@ -167,7 +167,7 @@ def test_coarse_drape_on_the_mannequin_dresses():
     """Coarse (about 400 vertices) drape on the default mannequin with friction
     reaches the dressed equilibrium (relative residual <= 1e-3), no vertex
     more than 2 mm inside the body, seams closed, not slid down."""
-    from couture.bench.drape_slopers import INSIDE_LIMIT, SLID_LIMIT, drape
+    from bench.drape_slopers import INSIDE_LIMIT, SLID_LIMIT, drape
 
     row, _, _ = drape("dress_waist", vertices=400, solvers=("newton", "kinetic"), max_seconds=30.0, tol=1e-3)
     assert row.residual <= 1e-3, row

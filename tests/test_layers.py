@@ -1,12 +1,15 @@
 """Import rules between the layers (README, "Layers and their rules"), read
-from every import statement in couture/, nodes/ and schemas/ (function-level
+from every import statement in couture/, nodes/, schemas/ and bench/ (function-level
 imports included):
 
 - the library never imports the bus: only the bus-facing modules listed in
   BUS_FACING import zenoh, the bus, recording, the client or the supervisor;
-- the numerical packages import no bus code, no UI and no benchmark;
+- the numerical packages import no bus code and no UI;
 - nodes never import each other, and nothing in couture/ or schemas/ imports nodes;
-- nothing imports upward (schemas < library < bus-facing library < nodes).
+- the benchmarks (bench/, beside the library, not installed with it) sit on
+  top: nothing in couture/, nodes/ or schemas/ imports them (``couture bench``
+  finds them at run time in the checkout);
+- nothing imports upward (schemas < library < bus-facing library < nodes < benchmarks).
 """
 
 from __future__ import annotations
@@ -26,13 +29,6 @@ BUS_FACING = (
     "couture.graph",  # the node graph: node command lines from their Configs (couture.bus.nodeargs)
     "couture.cli",
     "couture.__main__",  # python -m couture: the CLI
-    # benchmarks of the running system: they start nodes or time the bus
-    "couture.bench.bus",
-    "couture.bench.edit",
-    "couture.bench.ui",
-    "couture.bench.drape",
-    "couture.bench.load",
-    "couture.bench.adjust",
 )
 """library modules (and packages) that may talk to Zenoh"""
 
@@ -48,7 +44,7 @@ NUMERICAL = (
     "couture.mesh",
     "couture.adjust",
 )
-"""packages that compute: no bus, no UI, no benchmark"""
+"""packages that compute: no bus, no UI"""
 
 CONVERTERS = ("schemas.convert",)
 """schemas modules that turn messages into library types (and so sit with the library)"""
@@ -88,7 +84,10 @@ def imports_of(source: str, me: str, is_package: bool = False) -> list[tuple[int
 
 
 def rank(module: str) -> int:
-    """Layer of a first-party module: 0 schemas, 1 library, 2 bus-facing library, 3 nodes; -1 third party."""
+    """Layer of a first-party module: 0 schemas, 1 library, 2 bus-facing library, 3 nodes, 4 benchmarks;
+    -1 third party."""
+    if _under(module, "bench"):
+        return 4
     if _under(module, "nodes"):
         return 3
     if _under(module, BUS_FACING):
@@ -110,8 +109,8 @@ def violations(path: Path, source: str | None = None) -> list[str]:
     for line, imp in imports_of(text, me, path.name == "__init__.py"):
         if _under(me, "couture") and not _under(me, BUS_FACING) and _under(imp, BUS_CODE):
             bad.append(f"{where}:{line}: {me} imports {imp} (only the bus-facing modules may)")
-        if _under(me, NUMERICAL) and _under(imp, ("couture.ui", "couture.bench")):
-            bad.append(f"{where}:{line}: {me} imports {imp} (numerical code imports no UI or benchmark)")
+        if _under(me, NUMERICAL) and _under(imp, "couture.ui"):
+            bad.append(f"{where}:{line}: {me} imports {imp} (numerical code imports no UI)")
         if _under(me, "nodes") and _under(imp, "nodes"):
             mine = ".".join(me.split(".")[:2])
             if imp != "nodes" and not _under(imp, mine):
@@ -122,7 +121,7 @@ def violations(path: Path, source: str | None = None) -> list[str]:
 
 
 def _sources() -> list[Path]:
-    return sorted(p for d in ("couture", "nodes", "schemas") for p in (ROOT / d).rglob("*.py"))
+    return sorted(p for d in ("couture", "nodes", "schemas", "bench") for p in (ROOT / d).rglob("*.py"))
 
 
 def test_the_tree_keeps_the_import_rules():
@@ -137,6 +136,9 @@ def test_the_tree_keeps_the_import_rules():
         ("couture/pattern/probe.py", "from couture.bus import Node", "bus-facing"),
         ("couture/solvers/probe.py", "def f():\n    from couture.client import Client\n", "bus-facing"),
         ("couture/remesh/probe.py", "from couture.ui.state import Option", "numerical"),
+        ("couture/cli.py", "def f():\n    from bench.adjust import design_fit\n", "upward"),
+        ("couture/solvers/probe.py", "import bench", "upward"),
+        ("nodes/solver/probe.py", "from bench import write_results", "upward"),
         ("couture/remesh/probe.py", "import nodes.remesher.main", "upward"),
         ("nodes/solver/probe.py", "from nodes.sensitivity.main import main", "each other"),
         ("nodes/solver/probe.py", "from ..ui import main", "each other"),
@@ -154,5 +156,9 @@ def test_allowed_imports_pass():
         ("couture/bus/probe.py", "import zenoh\nfrom couture.pattern import draft"),
         ("nodes/solver/probe.py", "from couture.bus import Node\nfrom . import main"),
         ("couture/remesh/probe.py", "from schemas.design import Design\nfrom . import service"),
+        (
+            "bench/probe.py",
+            "import zenoh\nfrom bench import write_results\nfrom couture.client import Client\nimport nodes",
+        ),
     ):
         assert violations(ROOT / module, source) == []

@@ -6,8 +6,8 @@ accurate. newton is in the test extra, so these always run."""
 import numpy as np
 import pytest
 
-from couture.bench.sensitivity import strip_over_sphere
-from couture.bench.tradeoff import LINEAR_FRICTIONLESS, PEER, peer_ratios
+from bench.sensitivity import strip_over_sphere
+from bench.tradeoff import LINEAR_FRICTIONLESS, PEER, peer_ratios
 from couture.solvers import get_solver
 
 
@@ -70,9 +70,8 @@ def test_peer_ratios_fastest_of_ours_at_least_as_accurate():
 
 
 def test_seams_welded_as_style3d_sews_them():
-    from couture.bench.tradeoff import EXAMPLES
     from couture.cloth.model import ClothModel
-    from couture.pattern.io import load_design
+    from couture.pattern.io import EXAMPLES, load_design
     from couture.pattern.validate import validate
     from couture.remesh import mesh_pattern
     from couture.solvers.peer import weld_seams
@@ -101,7 +100,7 @@ def test_seams_welded_as_style3d_sews_them():
 def test_without_newton_clear_error_and_bench_skips(monkeypatch):
     import sys
 
-    from couture.bench import tradeoff
+    from bench import tradeoff
     from couture.solvers import peer
 
     # newton made unimportable in this process (None in sys.modules: import raises ImportError)

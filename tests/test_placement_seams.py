@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from couture.bench.drape_slopers import coarse_mesh, seam_gaps
+from bench.drape_slopers import coarse_mesh, seam_gaps
 
 # median / max seam gap at x0 [m]. Skirt and trousers close to the goal
 # (median <= 1 cm, max <= 3.5 cm: the waistband is tighter than body + 7 mm

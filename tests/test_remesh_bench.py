@@ -2,7 +2,7 @@
 
 import json
 
-from couture.bench.remesh import main
+from bench.remesh import main
 
 
 def test_bench_remesh_quick(tmp_path):

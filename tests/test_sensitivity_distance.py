@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from couture.bench import preview_error
+from bench import preview_error
 from couture.sensitivity.distance import _line_min, _pcg
 
 

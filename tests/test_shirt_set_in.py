@@ -88,7 +88,7 @@ def test_collar_is_as_long_as_the_neckline_and_closes_round_the_neck():
 
 
 def test_pattern_validates_meshes_and_starts_outside_the_body():
-    from couture.bench.drape_slopers import INSIDE_LIMIT
+    from bench.drape_slopers import INSIDE_LIMIT
     from couture.cloth.body import load_mannequin_sdf
     from couture.remesh.meshing import mesh_pattern
 
@@ -191,7 +191,7 @@ def test_collar_is_not_caught_under_the_chin(size):
     collar front came out above the jaw's underside, stretched 1.2-2.4."""
     import msgspec
 
-    from couture.bench.grading import drape_on, principal_stretches
+    from bench.grading import drape_on, principal_stretches
     from couture.pattern.io import load_design
 
     largest = max(bodies.table(), key=lambda r: r["measured"]["bust_girth"])["name"] if size == "largest" else size

@@ -4,14 +4,14 @@ Coarse (400 vertices), default fabric, mannequin with friction, from the
 wrap placement. Dressed: relative residual <= 1e-3, no vertex more than 2 mm
 inside the body, the garment's top not more than 10 cm below where it was
 placed. Not weakened to what the solvers reach today: see
-``python -m couture.bench.drape_slopers`` for the numbers.
+``python -m bench.drape_slopers`` for the numbers.
 """
 
 from __future__ import annotations
 
 import pytest
 
-from couture.bench.drape_slopers import INSIDE_LIMIT, SLID_LIMIT, drape
+from bench.drape_slopers import INSIDE_LIMIT, SLID_LIMIT, drape
 
 pytestmark = pytest.mark.slow
 
@@ -43,7 +43,7 @@ def test_trousers_stay_up_on_a_graded_body(body, waist):
     where it was placed. XS is the smallest body, XL the one that slid most
     (newton, 400 vertices: XS -0.5 cm, XL 0.55 cm; 0.8 and 2.4 cm with the rise
     drafted from the crotch depth + 6 cm and the elastic at 0.8 of the waist)."""
-    from couture.bench.drape_slopers import body_params
+    from bench.drape_slopers import body_params
 
     params = body_params("trousers", body)
     assert params["waist_girth"] == pytest.approx(waist, abs=1e-3)

@@ -16,8 +16,8 @@ from dataclasses import replace
 import msgspec
 import pytest
 
+from bench import load
 from couture import supervisor
-from couture.bench import load
 from couture.bus import BusConfig, free_port
 from couture.client import Client
 from schemas.design import Sloper

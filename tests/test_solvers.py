@@ -294,7 +294,7 @@ def test_cascadic_coarse_then_fine():
 @pytest.fixture(scope="module")
 def small_skirt():
     """Default skirt meshed at ~330 / ~1160 vertices, coarse drape at 1e-3."""
-    from couture.bench.solver import skirt_models
+    from bench.solver import skirt_models
     from schemas.design import Design, Resolution, Sloper
 
     design = Design(sloper=Sloper(kind="skirt"), resolution=Resolution(coarse_vertices=300, fine_vertices=900))

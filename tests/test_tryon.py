@@ -10,10 +10,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from couture.bench.drape_slopers import coarse_mesh
+from bench.drape_slopers import coarse_mesh
 from couture.cloth.body import SphereBody, load_mannequin_sdf
 from couture.cloth.model import ClothModel, Scene
-from couture.tryon import TryOn, TryOnError, drag, panel_vertices, rotate, seam_groups, solve
+from couture.solvers.service import solve_tryon
+from couture.tryon import TryOn, TryOnError, drag, panel_vertices, rotate, seam_groups
 
 
 @pytest.fixture(scope="module")
@@ -143,7 +144,7 @@ def test_fixed_panel_stays_where_it_is_in_the_solve(skirt, sdf):
         st.apply("fix", panel=p)
     st.apply("unfix", panel=3)
     before = st.x.copy()
-    r = solve(st, design.fabric, Scene(body=sdf, friction=False), "newton", tol=1e-4, max_iters=30)
+    r = solve_tryon(st, design.fabric, Scene(body=sdf, friction=False), "newton", tol=1e-4, max_iters=30)
     held = np.concatenate([panel_vertices(res.mesh, p) for p in range(3)])
     np.testing.assert_array_equal(st.x[held], before[held])
     # the free gore, unsewn and frictionless, fell (nothing holds it)
@@ -166,18 +167,18 @@ def test_sequential_sewing_reaches_the_all_at_once_equilibrium(skirt, sdf):
     scene = Scene(body=sdf, friction=False)
     tol = 1e-7
     allst = TryOn.start(m)
-    r = solve(allst, design.fabric, scene, "newton", tol=tol, max_iters=300)
+    r = solve_tryon(allst, design.fabric, scene, "newton", tol=tol, max_iters=300)
     assert r.converged, r.diagnosis
     # seams pinned open at the waist keep a gap there: the reference is the all-at-once drape's
     gap_all = _gap(m, allst.x, np.arange(len(m.seam_emitters)))
     seq = TryOn.start(m, sewn=False)
     full = ClothModel(TryOn.start(m).model_mesh(), design.fabric, scene)
-    r = solve(seq, design.fabric, scene, "newton", tol=tol, max_iters=300)
+    r = solve_tryon(seq, design.fabric, scene, "newton", tol=tol, max_iters=300)
     assert r.converged, r.diagnosis
     assert _gap(m, seq.x, seq.groups[0]) > gap_all + 0.01  # unsewn, the gores part
     for _ in range(seq.n_seams):
         seq.apply("sew")
-        r = solve(seq, design.fabric, scene, "newton", tol=tol, max_iters=300)
+        r = solve_tryon(seq, design.fabric, scene, "newton", tol=tol, max_iters=300)
         assert r.converged, r.diagnosis
         sewn = np.concatenate([g for g, on in zip(seq.groups, seq.sewn, strict=True) if on])
         assert _gap(m, seq.x, sewn) < gap_all + 1e-3  # the seams sewn so far are closed
@@ -263,10 +264,10 @@ def test_sequential_sewing_of_a_stiffer_skirt_ends_where_all_at_once_does(skirt,
     for k in range(seq.n_seams + 1):
         if k:
             seq.apply("sew", seam=k - 1)
-        r = solve(seq, fab, scene, "newton", tol=1e-7, max_iters=300)
+        r = solve_tryon(seq, fab, scene, "newton", tol=1e-7, max_iters=300)
         assert r.converged, (k, r.diagnosis)
     allst = TryOn.start(m)
-    r = solve(allst, fab, scene, "newton", tol=1e-7, max_iters=300)
+    r = solve_tryon(allst, fab, scene, "newton", tol=1e-7, max_iters=300)
     assert r.converged, r.diagnosis
     d = np.linalg.norm(seq.x - allst.x, axis=1)
     assert d.max() < 1e-3, d.max()

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from fdcheck import along_axes, assert_close
 
-from couture.bench.drape_slopers import coarse_mesh
+from bench.drape_slopers import coarse_mesh
 from couture.cloth.body import TriangleMeshDistance, load_mannequin_mesh, load_mannequin_sdf
 from couture.cloth.proxy import load_mannequin_proxy, mannequin_regions
 from couture.tryon import TORSO_AXIS_POINT, TryOn, drag, panel_vertices

@@ -32,6 +32,7 @@ import sys
 import time
 from functools import lru_cache
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -163,14 +164,18 @@ def make_graded(
     names: list[str] | None = None,
     verbose: bool = True,
     table: dict[str, dict[str, float]] | None = None,
+    write_sections: Callable[[Path, Path], None] | None = None,
 ) -> dict:
     """Fit and write every size of ``table`` (default SIZE_TABLE; or only
-    ``names``): <name>.obj, the placement sections <name>.sections.npz, and
-    bodies.json (requested vs measured, Anny parameters); copies Anny's
-    licences beside them."""
-    import anny
+    ``names``): <name>.obj, the placement sections <name>.sections.npz (with
+    ``write_sections(obj_path, npz_path)``, after each body), and bodies.json
+    (requested vs measured, Anny parameters); copies Anny's licences beside them.
 
-    from couture.pattern.sections import measure_sections, save_sections
+    The placement sections are the pattern's tables (about its placement axes,
+    couture.pattern.sections), and couture.pattern sits above this package: the
+    caller passes their writer (``couture bodies make`` passes
+    couture.pattern.sections.write_body_sections)."""
+    import anny
 
     out.mkdir(parents=True, exist_ok=True)
     index_path = out / "bodies.json"
@@ -195,7 +200,8 @@ def make_graded(
             f"couture graded body {name!r}: Anny {anny.__version__} (NAVER LABS, Apache-2.0; MakeHuman assets CC0),"
             f"\nfitted by couture.bodies.make; metres, y up, facing +z. See LICENSE and bodies.json.",
         )
-        save_sections(measure_sections(str(obj)), out / f"{name}.sections.npz")
+        if write_sections is not None:
+            write_sections(obj, out / f"{name}.sections.npz")
         index["bodies"][name] = {
             "requested": target,
             "measured": {k: round(v, 5) for k, v in measured.items()},

@@ -21,6 +21,10 @@ from couture.pattern.errors import PatternError
 from couture.pattern.geometry import signed_area
 from schemas.design import DESIGN_SCHEMA, Design
 
+EXAMPLES = Path(__file__).resolve().parent / "examples"
+"""the example designs shipped with couture (``couture/pattern/examples/<name>.json``): the one
+place the golden cases, the benchmarks and the tests find them"""
+
 
 class DesignFile(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     """Our JSON pattern file: the design in a versioned envelope."""

@@ -160,6 +160,11 @@ def save_sections(sections: dict[str, Section], path: Path = SECTIONS_PATH) -> N
     np.savez_compressed(path, **arrays)
 
 
+def write_body_sections(obj: Path, path: Path) -> None:
+    """Measure the tables of the body mesh ``obj`` and store them at ``path`` (``couture bodies make``)."""
+    save_sections(measure_sections(str(obj)), path)
+
+
 @lru_cache(maxsize=16)
 def sections(body: str = "default") -> dict[str, Section]:
     """The stored tables of a body ('default': regenerate with

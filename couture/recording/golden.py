@@ -83,7 +83,6 @@ from schemas.design import Design
 log = logging.getLogger("couture.golden")
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
-EXAMPLES = Path(__file__).resolve().parents[1] / "pattern" / "examples"
 
 
 @dataclass
@@ -165,13 +164,6 @@ def load_case(name_or_path: str) -> Case:
 
     validate(spec.get("steps", []), str(p))
     return Case(name=p.stem, path=p, **{k: spec[k] for k in keys if k in spec})
-
-
-def _merge(base: dict, patch: dict) -> dict:
-    out = dict(base)
-    for k, v in patch.items():
-        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
-    return out
 
 
 def _nodes(case: Case, record: Path) -> list[supervisor.NodeSpec]:

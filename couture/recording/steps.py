@@ -418,8 +418,7 @@ def resolve_design(case: Any, current: Design | None, entry: Any) -> Design:
     to the examples) or a patch merged into the current design."""
     import msgspec
 
-    from couture.pattern.io import load_design
-    from couture.recording.golden import EXAMPLES, _merge
+    from couture.pattern.io import EXAMPLES, load_design
 
     design = current
     for part in entry if isinstance(entry, list) else [entry]:
@@ -431,3 +430,11 @@ def resolve_design(case: Any, current: Design | None, entry: Any) -> Design:
             design = msgspec.convert(_merge(base, part), Design)
     assert design is not None
     return design
+
+
+def _merge(base: dict, patch: dict) -> dict:
+    """``base`` with ``patch`` merged in, nested dicts key by key (a design step's patch)."""
+    out = dict(base)
+    for k, v in patch.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out

@@ -437,5 +437,17 @@ class SolveService:
         return self._proxy[1]
 
 
+def solve_tryon(state: TryOn, fabric, scene, solver="newton", **opts) -> SolveResult:
+    """Solve the try-on ``state`` (couture.tryon: sewn seams only, fixed panels
+    pinned) to equilibrium from its positions with a solver of couture.solvers
+    (a registry name or an instance; ``opts`` go to its ``solve``); the state
+    takes the result's x. Returns the SolveResult."""
+    s = get_solver(solver) if isinstance(solver, str) else solver
+    model = ClothModel(state.model_mesh(), fabric, scene)
+    r = s.solve(model, state.x.copy(), **opts)
+    state.x = np.array(r.x, dtype=np.float64)
+    return r
+
+
 def _copy_tryon(t: TryOn) -> TryOn:
     return TryOn(mesh=t.mesh, x=t.x.copy(), groups=t.groups, sewn=t.sewn.copy(), fixed=set(t.fixed))

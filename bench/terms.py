@@ -30,13 +30,13 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 from typing import Any
 
 import msgspec
 import numpy as np
 
-from couture.bench import add_out_arg, source_commit, write_results
+from bench import add_out_arg, source_commit, write_results
+from couture.pattern.io import EXAMPLES
 
 TOL = 1e-5
 """relative residual every solve here goes to"""
@@ -99,7 +99,7 @@ def sheet_scene() -> dict[str, Any]:
 def _default_skirt():
     from couture.pattern.io import load_design
 
-    return load_design(Path(__file__).resolve().parents[1] / "pattern" / "examples" / "default_skirt.json")
+    return load_design(EXAMPLES / "default_skirt.json")
 
 
 def _skirt_mesh(level: str = "coarse"):

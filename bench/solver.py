@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from couture.bench import add_out_arg, write_results
+from bench import OWN_SOLVERS, add_out_arg, write_results
 
 GOALS = {"coarse_steps_per_s": 50.0, "fine_steps_per_s": 10.0, "fine_drape_1e-4_s": 5.0}
 
@@ -167,7 +167,7 @@ def numba_compile_times():
     fab = SimpleNamespace(stretch_stiffness=500.0, bend_stiffness=1e-6, area_density=0.15, poisson_ratio=0.3)
     model = ClothModel(m, fab, Scene())
     out = {}
-    for name in ("kinetic", "newton", "verlet"):
+    for name in OWN_SOLVERS:
         t = time.perf_counter()
         get_solver(name).solve(model, m.x0, max_iters=3)
         first = time.perf_counter() - t

@@ -69,17 +69,16 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from couture.bench import add_out_arg, source_commit, write_results
+from bench import OWN_SOLVERS, PEER, add_out_arg, source_commit, write_results
+from couture.pattern.io import EXAMPLES
 
 if TYPE_CHECKING:
     from couture.cloth.model import ClothModel
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "pattern" / "examples"
-SOLVER_NAMES = ("newton", "kinetic", "verlet")
+SOLVER_NAMES = OWN_SOLVERS
 PREDICTORS = ("linear", "gmls", "mls")
 REFERENCE_TOLS = (1e-6, 1e-5, 1e-4)
 SCENES = ("sheet", "skirt", "dress")
-PEER = "style3d"
 PEER_TOLS = (1e-1, 3e-2, 1e-2, 3e-3)
 NOT_OURS = ("none", PEER)
 
@@ -151,7 +150,7 @@ def _drape_levels(sc: Scene, seconds: float) -> None:
 
 def sheet_scene(coarse=(32, 10), fine=(63, 20), edit=0.04, seconds=120.0) -> Scene:
     """The strip over the sphere, its free end pulled out by ``edit`` [m] (length 0.8 m)."""
-    from couture.bench.sensitivity import strip_over_sphere
+    from bench.sensitivity import strip_over_sphere
     from couture.solvers.cascadic import locate
 
     sc = Scene(
@@ -513,7 +512,7 @@ def pareto(rows: list[dict]) -> list[str]:
 
 def warm_up(log=print, peer: bool = False) -> dict:
     """Compile or load every numba kernel on a tiny sheet: the first call's extra time per component [s]."""
-    from couture.bench.sensitivity import strip_over_sphere
+    from bench.sensitivity import strip_over_sphere
     from couture.sensitivity import Predictor
     from couture.solvers import get_solver
 

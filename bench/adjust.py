@@ -29,74 +29,22 @@ iterations and 60 s.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import sys
 import time
-from collections.abc import Iterator
-from dataclasses import replace
 from pathlib import Path
 
-from couture.bench import add_out_arg, source_commit, write_results
+from bench import add_out_arg, source_commit, write_results
+from couture.client import adjust_on_bus, solver_session
+from couture.pattern.io import EXAMPLES
+from couture.solvers import SOLVERS
 
 CASES = {
-    "skirt_hem": ("couture/pattern/examples/default_skirt.json", "hem", -0.15),
-    "dress_waist": ("couture/pattern/examples/dress.json", "waist", +0.04),
-    "skirt_longer": ("couture/pattern/examples/default_skirt.json", "hem", +0.05),
-    "skirt_waist": ("couture/pattern/examples/default_skirt.json", "waist", +0.04),
+    "skirt_hem": (EXAMPLES / "default_skirt.json", "hem", -0.15),
+    "dress_waist": (EXAMPLES / "dress.json", "waist", +0.04),
+    "skirt_longer": (EXAMPLES / "default_skirt.json", "hem", +0.05),
+    "skirt_waist": (EXAMPLES / "default_skirt.json", "waist", +0.04),
 }
 GOAL = {"hausdorff_pct": 1.0, "stretch": 0.98, "iterations": 5, "seconds": 60.0}
-
-
-@contextlib.contextmanager
-def solver_session(
-    solvers: list[str], bus=None, *, log_file: str | None = None, timeout: float = 90.0
-) -> Iterator[tuple[object, list[str]]]:
-    """A client and the names of the solver nodes it may ask: with ``bus.connect``,
-    the live ``solver-*`` nodes of that session (``solvers`` names them when
-    given); otherwise one solver node per entry of ``solvers`` (a method:
-    'newton', 'kinetic', 'verlet'; a method twice gets two processes), started
-    here under a supervisor and stopped on exit."""
-    from couture import supervisor
-    from couture.bus import BusConfig, free_port
-    from couture.client import Client
-
-    if bus is not None and bus.connect:
-        with Client(bus=bus) as c:
-            live = sorted(n for n in c.live_nodes(timeout=2.0) if n.startswith("solver"))
-            names = [s if s.startswith("solver") else f"solver-{s}" for s in solvers] if solvers else live
-            missing = [n for n in names if n not in live]
-            if missing or not names:
-                raise RuntimeError(f"solver nodes {missing or 'any'} not live on session {bus.session} (live: {live})")
-            yield c, names
-        return
-    names, specs = [], []
-    for i, s in enumerate(solvers):
-        name = f"solver-{s}" if solvers.count(s) == 1 else f"solver-{s}{i}"
-        names.append(name)
-        specs.append(supervisor.NodeSpec(name, "nodes.solver", ["--solver", s]))
-    cfg = bus or BusConfig(session=f"adjust{int(time.time() * 1000) % 10**8}")
-    if not cfg.listen:
-        cfg = replace(cfg, listen=[f"tcp/127.0.0.1:{free_port()}"])
-    with supervisor.Supervisor(supervisor.SupervisorConfig(bus=cfg, nodes=specs, child_log=log_file)) as sup:
-        with Client(bus=sup.child_bus) as c:
-            c.wait_nodes(names, timeout=timeout)
-            yield c, names
-
-
-def run_on_bus(client, names: list[str], design, edit: str, amount: float, **kw):
-    """One case, its solves fanned out over the solver nodes ``names``."""
-    from couture.adjust.pipeline import run_case
-    from couture.client import SolveFanout
-
-    fans: list[SolveFanout] = []
-    max_seconds = kw.pop("max_seconds", 60.0)
-
-    def simulate_for(mesh):
-        fans.append(SolveFanout(client, mesh, design, names, max_seconds=max_seconds))
-        return fans[-1]
-
-    case = run_case(design, edit, amount, simulate_for, **kw)
-    return case, (fans[-1].counts if fans else {})
 
 
 def design_fit(client, solver: str, design, case, vertices: int) -> dict:
@@ -133,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="couture bench adjust", description=__doc__.split("\n\n")[0])
     add_out_arg(ap)
     ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
-    ap.add_argument("--solvers", nargs="+", default=["newton", "kinetic"], choices=["newton", "kinetic", "verlet"])
+    ap.add_argument("--solvers", nargs="+", default=["newton", "kinetic"], choices=list(SOLVERS))
     ap.add_argument("--vertices", nargs="+", type=int, default=[400, 1600], help="coarse mesh sizes to run")
     ap.add_argument("--iters", type=int, default=5, help="at most this many fixed-point updates")
     ap.add_argument(
@@ -162,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
             for n in a.vertices:
                 for solver in names:
                     print(f"\n== {case_name} ({edit} {amount:+.2f} m), {n} vertices, {solver}", flush=True)
-                    case, counts = run_on_bus(
+                    case, counts = adjust_on_bus(
                         client,
                         [solver],
                         design,

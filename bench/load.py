@@ -42,10 +42,11 @@ from typing import Any
 import msgspec
 import numpy as np
 
+from bench import add_out_arg, source_commit, write_results
 from couture import supervisor
-from couture.bench import add_out_arg, source_commit, write_results
 from couture.bus import BusConfig, free_port
 from couture.client import Client
+from couture.solvers import SOLVERS
 from schemas import DrapeMsg
 from schemas.design import Design, Resolution, Sloper
 
@@ -225,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rounds", type=int, default=3, help="drag + design change rounds per session")
     ap.add_argument("--drags", type=int, default=30, help="drag events per gesture")
     ap.add_argument("--hz", type=float, default=30.0, help="drag rate per session")
-    ap.add_argument("--solver", default="newton", choices=["kinetic", "newton", "verlet"])
+    ap.add_argument("--solver", default="newton", choices=list(SOLVERS))
     ap.add_argument("--timeout", type=float, default=180.0, help="[s] any single wait")
     add_out_arg(ap)
     a = ap.parse_args(argv)

@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from couture.bench import add_out_arg, source_commit, write_results
+from bench import add_out_arg, source_commit, write_results
 
 DRAGS = (
     ("gore1", 0.3, -0.03),
@@ -136,7 +136,7 @@ def main(argv=None) -> int:
     add_out_arg(ap)
     args = ap.parse_args(argv)
 
-    from couture.bench.drape_slopers import coarse_mesh
+    from bench.drape_slopers import coarse_mesh
     from couture.cloth.body import TriangleMeshDistance, load_mannequin_mesh, load_mannequin_sdf
     from couture.cloth.proxy import load_mannequin_proxy
 

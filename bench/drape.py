@@ -46,9 +46,10 @@ from typing import Any
 
 import numpy as np
 
-from couture.bench import add_out_arg, source_commit, write_results
+from bench import add_out_arg, child_env, module_command, source_commit, write_results
+from couture.pattern.io import EXAMPLES
+from couture.solvers import SOLVERS
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "pattern" / "examples"
 TOL = 1e-4
 """relative residual the figures are timed to"""
 GOALS = {"fine_total_s": 5.0, "fine_steps_per_s": 10.0, "coarse_steps_per_s": 50.0}
@@ -282,10 +283,8 @@ def sweep(
     rows: list[dict[str, Any]] = []
     for n in sizes:
         print(f"  sweep: {n} fine vertices ({method})...", file=sys.stderr, flush=True)
-        cmd = [
-            sys.executable,
-            "-m",
-            "couture.bench.drape",
+        cmd = module_command(
+            "drape",
             "--sweep-one",
             str(n),
             "--solvers",
@@ -294,9 +293,9 @@ def sweep(
             str(max_seconds),
             "--sweep-design",
             design_name,
-        ]
+        )
         try:
-            p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
+            p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, env=child_env())
         except subprocess.TimeoutExpired:
             rows.append({"target": n, "error": f"no result within {timeout_s:g} s"})
             continue
@@ -470,7 +469,7 @@ def main(argv: list[str] | None = None) -> int:
         default=sorted(p.stem for p in EXAMPLES.glob("*.json")),
         help="example names or pattern files (default: every example; none: the sweep only)",
     )
-    ap.add_argument("--solvers", nargs="+", default=["newton", "kinetic"], choices=["newton", "kinetic", "verlet"])
+    ap.add_argument("--solvers", nargs="+", default=["newton", "kinetic"], choices=list(SOLVERS))
     ap.add_argument("--levels", default="coarse,fine", help="levels to solve, comma separated (coarse first)")
     ap.add_argument("--frictionless", action="store_true", help="also drape every design with friction off")
     ap.add_argument("--max-seconds", type=float, default=120.0, help="[s] cap on each level's solve")
@@ -479,7 +478,7 @@ def main(argv: list[str] | None = None) -> int:
         default=",".join(str(s) for s in SWEEP_SIZES),
         help="fine-level vertex targets of the default-skirt sweep, comma separated",
     )
-    ap.add_argument("--sweep-solver", default="newton", choices=["newton", "kinetic", "verlet"])
+    ap.add_argument("--sweep-solver", default="newton", choices=list(SOLVERS))
     ap.add_argument("--sweep-design", default="default_skirt", help="design of the size sweep")
     ap.add_argument("--no-sweep", action="store_true", help="skip the size sweep")
     add_out_arg(ap)

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from couture.bench import add_out_arg, source_commit, write_results
+from bench import add_out_arg, source_commit, write_results
 
 
 def _best_of(f, repeats=5):
@@ -87,7 +87,7 @@ def surface_check(proxy, dist, V, F):
 
 def verlet_contact(steps: int, dist, level="coarse"):
     """The default skirt draped by Verlet for ``steps`` steps with each contact body."""
-    from couture.bench.solver import skirt_models
+    from bench.solver import skirt_models
     from couture.solvers.verlet import VerletSolver
 
     makers, meshes, _, _ = skirt_models(levels=(level,))

@@ -27,11 +27,10 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-from couture.bench import add_out_arg, write_results
+from bench import ROOT, add_out_arg, write_results
 from couture.jsonout import dumps
 
 _OBSERVER_JS = """
@@ -75,7 +74,7 @@ def _log(text: str) -> None:
 
 
 def run(n_vertices: int = 10000, seconds: float = 5.0, offer_hz: float = 120.0, fields=("none", "strain")) -> dict:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
+    sys.path.insert(0, str(ROOT / "tests"))
     from browser.chromium import browser_page, wait_camera, wait_until  # test helpers: one way to launch chromium
 
     from couture.bus import free_port

@@ -1,20 +1,26 @@
-"""Timings of the cloth model on a sheet of about N vertices.
+"""``couture bench cloth``: timings of the cloth model on a sheet of about N vertices.
 
-    python -m couture.cloth.bench [--vertices 10000] [--body]
-
-Run with ``NUMBA_CACHE_DIR`` pointing at an empty folder to include the
-numba compile time in the first call.
+Energy, forces, stiffness and dF/dX of :class:`couture.cloth.ClothModel`
+(best and median of ``--repeat`` calls), and the cost of building the model
+and of the first calls. Run with ``NUMBA_CACHE_DIR`` pointing at an empty
+folder to include the numba compile time in the first call. Writes
+``cloth.json`` to ``--out``.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 import numpy as np
 
+from bench import add_out_arg, source_commit, write_results
 
-def main(vertices: int = 10_000, body: bool = False, repeat: int = 20) -> dict:
+
+def run(vertices: int = 10_000, body: bool = False, repeat: int = 20) -> dict:
+    """The timings [s and ms] on a grid sheet of about ``vertices`` vertices
+    (with a sphere body, contact and friction when ``body``)."""
     t0 = time.perf_counter()
     from couture.cloth import ClothModel, Scene
     from couture.cloth.body import SphereBody
@@ -65,10 +71,24 @@ def main(vertices: int = 10_000, body: bool = False, repeat: int = 20) -> dict:
     return out
 
 
-if __name__ == "__main__":
-    ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--vertices", type=int, default=10_000)
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="couture bench cloth", description=__doc__.split("\n\n")[0])
+    add_out_arg(ap)
+    ap.add_argument("--vertices", type=int, default=10_000, help="about this many sheet vertices")
     ap.add_argument("--body", action="store_true", help="add a sphere body with contact and friction")
-    a = ap.parse_args()
-    for k, v in main(a.vertices, a.body).items():
+    ap.add_argument("--repeat", type=int, default=20, help="calls per timing (best and median reported)")
+    a = ap.parse_args(argv)
+    if a.vertices < 4 or a.repeat < 1:
+        ap.error(f"--vertices {a.vertices} (at least 4) and --repeat {a.repeat} (at least 1)")
+    out = run(a.vertices, a.body, a.repeat)
+    for k, v in out.items():
         print(f"{k}: {v}")
+    path = write_results(
+        a.out, "cloth", {"commit": source_commit(), "settings": vars(a) | {"out": str(a.out)}, "timings": out}
+    )
+    print(f"wrote {path}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -29,13 +29,12 @@ import argparse
 import math
 import platform
 import time
-from pathlib import Path
 
 import numpy as np
 
-from couture.bench import add_out_arg, source_commit, write_results
+from bench import add_out_arg, source_commit, write_results
+from couture.pattern.io import EXAMPLES
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "pattern" / "examples"
 GARMENTS = {"skirt": "default_skirt.json", "dress": "dress.json"}
 PARAMS = {"skirt": ("length", "flare", "hip_ease", "waist_ease"), "dress": ("length", "hip_ease", "waist_ease")}
 

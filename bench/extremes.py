@@ -81,10 +81,11 @@ from typing import Any, Callable
 
 import numpy as np
 
-from couture.bench import add_out_arg, source_commit, write_results
+from bench import OWN_SOLVERS, add_out_arg, child_env, module_command, source_commit, write_results
+from couture.pattern.io import EXAMPLES
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "pattern" / "examples"
-SOLVERS = ("newton", "kinetic", "verlet")
+SOLVERS = OWN_SOLVERS
+"""the solvers run by default (the registry's, less the peer)"""
 SCENES = ("skirt", "strip")
 TOL = 1e-4
 """relative residual a case converges to (the solver node's fine tolerance)"""
@@ -557,16 +558,7 @@ class _Worker:
 
 def worker_command(skirt_vertices: int, strip_grid: tuple[int, int]) -> list[str]:
     nx, ny = strip_grid
-    return [
-        sys.executable,
-        "-m",
-        "couture.bench.extremes",
-        "--worker",
-        "--skirt-vertices",
-        str(skirt_vertices),
-        "--strip-grid",
-        f"{nx}x{ny}",
-    ]
+    return module_command("extremes", "--worker", "--skirt-vertices", str(skirt_vertices), "--strip-grid", f"{nx}x{ny}")
 
 
 def run_cases(
@@ -586,12 +578,10 @@ def run_cases(
     deadline is killed (the case is hung) and a fresh one takes the next case.
     Returns the rows in the order of ``specs``."""
     cmd = command or worker_command(skirt_vertices, strip_grid)
-    env = dict(os.environ)
+    env = child_env()
     if jobs > 1:  # one core each
         for k in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
             env[k] = "1"
-    root = str(Path(__file__).resolve().parents[2])
-    env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     rows: list[dict[str, Any] | None] = [None] * len(specs)
     pending = list(range(len(specs)))[::-1]
     sel = selectors.DefaultSelector()
@@ -917,7 +907,7 @@ def main(argv: list[str] | None = None) -> int:
         epilog="outcomes: converged (checks passed), failed checks, diagnosed, undiagnosed, blew up, hung",
     )
     ap.add_argument("--scenes", default=",".join(SCENES), help="comma list of skirt,strip")
-    ap.add_argument("--solvers", default=",".join(SOLVERS), help="comma list of newton,kinetic,verlet")
+    ap.add_argument("--solvers", default=",".join(SOLVERS), help=f"comma list of {','.join(SOLVERS)}")
     ap.add_argument("--skirt-vertices", type=int, default=SKIRT_VERTICES, help="target vertices of the skirt's level")
     ap.add_argument("--strip-grid", type=_grid, default=STRIP_GRID, help="strip grid NXxNY (default 41x11)")
     ap.add_argument("--tol", type=float, default=TOL, help="relative residual to converge to")

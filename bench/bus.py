@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from couture.bench import RESULTS_DIR, add_out_arg, write_results
+from bench import RESULTS_DIR, add_out_arg, child_env, module_command, write_results
 
 N_VERTICES = 10_000
 
@@ -65,10 +65,8 @@ def _publisher(args: argparse.Namespace) -> None:
 
 def _spawn_pub(session: str, endpoint: str, rate: float, seconds: float) -> subprocess.Popen:
     return subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "couture.bench.bus",
+        module_command(
+            "bus",
             "--role",
             "pub",
             "--session",
@@ -79,9 +77,10 @@ def _spawn_pub(session: str, endpoint: str, rate: float, seconds: float) -> subp
             str(rate),
             "--seconds",
             str(seconds),
-        ],
+        ),
         stdout=subprocess.PIPE,
         text=True,
+        env=child_env(),
     )
 
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from couture.bench import add_out_arg, write_results
+from bench import add_out_arg, write_results
 
 GOALS = {"press_ms": 25.0, "gmls_ms": 0.2}
 
@@ -165,7 +165,7 @@ def bench_skirt(vertices: int, solve_seconds: float, repeats: int, log=print) ->
     rebuilt from the drape (``hold_friction``) as the predictor does."""
     import math
 
-    from couture.bench.preview_error import EXAMPLES, GARMENTS
+    from bench.preview_error import EXAMPLES, GARMENTS
     from couture.cloth.model import ClothModel
     from couture.pattern.edit import edit_jacobian
     from couture.pattern.io import load_design

@@ -40,9 +40,10 @@ from pathlib import Path
 
 import numpy as np
 
-from couture.bench import add_out_arg, source_commit, write_results
+from bench import add_out_arg, source_commit, write_results
+from couture.pattern.io import EXAMPLES
 
-DEFAULT_DESIGN = Path(__file__).resolve().parents[1] / "pattern" / "examples" / "default_skirt.json"
+DEFAULT_DESIGN = EXAMPLES / "default_skirt.json"
 LANDMARKS = ("bust", "waist", "hip")
 GAP_DEG = 20.0
 """[deg] widest uncovered arc, seen from the body's centre, of a garment section that counts as going round"""

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from couture.bench import add_out_arg, write_results
+from bench import add_out_arg, write_results
 
 GOAL_REMESH_MS = 60.0
 GOAL_PSI_MS = 20.0

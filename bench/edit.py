@@ -33,8 +33,8 @@ from typing import Any
 import msgspec
 import numpy as np
 
+from bench import add_out_arg, write_results
 from couture import supervisor
-from couture.bench import add_out_arg, write_results
 from couture.bus import BusConfig, free_port
 from couture.client import Client
 from schemas import DrapeMsg

@@ -40,7 +40,7 @@ import time
 
 import numpy as np
 
-from couture.bench import add_out_arg, source_commit, write_results
+from bench import add_out_arg, source_commit, write_results
 
 CASES = ("skirt5", "sheet", "skirt")
 ANSWERS = ("none", "linear", "mls", "gmls_plain", "gmls")
@@ -50,7 +50,7 @@ DEFECT_SCALES = (0.03, 0.1, 0.3, 1.0)
 
 
 def build(case: str, size: str, seconds: float):
-    from couture.bench import tradeoff as T
+    from bench import tradeoff as T
 
     small = size == "small"
     if case == "skirt5":
@@ -112,7 +112,7 @@ def latency_full_cache(n: int, repeats: int, max_active: int = 6) -> dict:
 
 
 def measure(case: str, size: str, seconds: float, repeats: int, log=print) -> dict:
-    from couture.bench import tradeoff as T
+    from bench import tradeoff as T
 
     t0 = time.perf_counter()
     sc = build(case, size, seconds)

@@ -1,4 +1,4 @@
-"""``python -m couture.bench.drape_slopers``: a from-scratch drape of every sloper.
+"""``python -m bench.drape_slopers``: a from-scratch drape of every sloper.
 
 For each sloper at its default options: draft, mesh coarse (``--vertices``),
 place around the mannequin (``couture.pattern.placement``), then solve for
@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from couture.bench import add_out_arg, write_results
+from bench import add_out_arg, write_results
+from couture.solvers import SOLVERS
 
 SLID_LIMIT = 0.10
 """[m] the garment's top may drop this much below its placed height"""
@@ -185,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--slopers", nargs="*", default=sorted(SLOPERS))
     ap.add_argument("--vertices", type=int, default=1600)
-    ap.add_argument("--solvers", nargs="*", default=["newton", "kinetic"])
+    ap.add_argument("--solvers", nargs="*", default=["newton", "kinetic"], choices=list(SOLVERS))
     ap.add_argument("--max-seconds", type=float, default=60.0)
     ap.add_argument("--tol", type=float, default=1e-4)
     ap.add_argument(
