@@ -17,7 +17,6 @@ decided by the solver's path makes them differ. Writes ``friction.json`` and
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -26,7 +25,6 @@ from typing import Any
 import numpy as np
 
 from bench import add_out_arg, source_commit, write_results
-
 from couture.pattern.io import EXAMPLES
 
 MODELS = ("anchors", "huber")
@@ -52,7 +50,9 @@ def drape(name: str, friction_model: str, method: str, coarse: int, fine: int) -
     service.max_seconds = {"coarse": 120.0, "fine": 300.0}
     service.set_design(design)
     for up in RemeshService().set_design(design, 1):
-        prolong = (up.fine_parent_tri, up.fine_bary) if up.level == "fine" else None
+        prolong = None
+        if up.fine_parent_tri is not None and up.fine_bary is not None:
+            prolong = (up.fine_parent_tri, up.fine_bary)
         service.set_mesh(up.level, up.mesh, up.mesh_generation, prolong)
     levels = {}
     for run in service.run():
