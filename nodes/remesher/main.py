@@ -1,4 +1,4 @@
-"""The remesher node: pattern -> mesh/coarse + mesh/fine, Ψ on press.
+"""The remesher node: pattern -> mesh/coarse + mesh/fine; press -> psi/coarse + psi/fine.
 
 A thin adapter over :class:`couture.remesh.service.RemeshService`, which also
 numbers the session's designs: meshes carry the generation it gave and the
@@ -25,13 +25,11 @@ import logging
 import threading
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from couture.bus import BusConfig, Node
 from couture.bus.worker import LatestWorker
 from couture.pattern.errors import PatternError
 from couture.remesh.service import MeshUpdate, RemeshService
-from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg
+from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, PsiMsg, RejectedMsg
 from schemas.convert import mesh_to_msg
 
 log = logging.getLogger("remesher")
@@ -49,6 +47,7 @@ def main(config: Config) -> None:
     with Node(config.name, config.bus, kind="remesher") as node:
         bus = node.bus
         pubs = {lv: bus.publisher(f"mesh/{lv}", MeshMsg) for lv in ("coarse", "fine")}
+        psi_pubs = {lv: bus.publisher(f"psi/{lv}", PsiMsg) for lv in ("coarse", "fine")}
         rejected_pub = bus.publisher("rejected", RejectedMsg)
         worker = LatestWorker("remesh", on_error=node.error)
 
@@ -68,16 +67,11 @@ def main(config: Config) -> None:
                 )
             )
 
-        def publish(up: MeshUpdate, psi: np.ndarray | None = None, edit_id: str = "") -> None:
-            # Ψ rides on the mesh the receivers already hold, marked unchanged so
-            # that none of them resets its state to this mesh's x0
+        def publish(up: MeshUpdate) -> None:
             msg = mesh_to_msg(
                 up.mesh,
                 generation=service.generation,
                 mesh_generation=up.mesh_generation,
-                psi=psi,
-                psi_edit_id=edit_id,
-                unchanged=psi is not None,
                 design_id=service.design_id,
                 fine_parent_tri=up.fine_parent_tri,
                 fine_bary=up.fine_bary,
@@ -171,12 +165,19 @@ def main(config: Config) -> None:
                 except (PatternError, RuntimeError, KeyError) as e:
                     node.error(f"edit {msg.edit_id}: no Ψ for {element!r}: {e}")
                     return
-                for level, st in service.levels.items():
-                    up = MeshUpdate(level, st.mesh, st.mesh_generation, "psi")
-                    if level == "fine" and service.fine_prolongation is not None:
-                        # the Ψ re-send is the topic's history: a solver restarted mid-drag takes it whole
-                        up.fine_parent_tri, up.fine_bary = service.fine_prolongation
-                    publish(up, psi=psis[level], edit_id=msg.edit_id)
+                # Ψ alone: the receivers hold the meshes it lives on (the fine one first, the
+                # sensitivity node's first prediction waits on it)
+                for level in sorted(psis, key=lambda lv: lv != "fine"):
+                    psi_pubs[level].put(
+                        PsiMsg(
+                            generation=service.generation,
+                            level=level,  # type: ignore[arg-type]
+                            mesh_generation=service.levels[level].mesh_generation,
+                            design_id=service.design_id,
+                            edit_id=msg.edit_id,
+                            psi=psis[level],
+                        )
+                    )
                 node.count("psi")
 
             worker.submit("press", job)

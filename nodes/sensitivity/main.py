@@ -35,7 +35,7 @@ from couture.sensitivity.service import (
     SensitivityConfig,
     SensitivityService,
 )
-from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg
+from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, PsiMsg
 from schemas.convert import msg_to_mesh
 
 log = logging.getLogger("sensitivity")
@@ -108,18 +108,15 @@ def main(config: Config) -> None:
         def on_mesh(msg: MeshMsg) -> None:
             if msg.level != "fine":
                 return
-            if msg.psi is not None and msg.psi_edit_id:
-                psi = msg.psi.numpy().copy()
-                edits.submit("press", lambda: press_columns(msg.psi_edit_id, psi))
-            # an unchanged mesh (re-sent to carry Ψ) is a repeat of the one held, but a node
-            # restarted after a press gets it as the remesher's last mesh: its only mesh to take
-            if msg.unchanged and msg.mesh_generation == service.mesh_generation:
-                return
             out = service.offer_mesh(msg.generation, msg.mesh_generation, msg_to_mesh(msg), msg.design_id)
             if out.status == "stale":
                 node.count("stale_meshes")
             if out.matched is not None:
                 take(out.matched)
+
+        def on_psi(msg: PsiMsg) -> None:
+            psi = msg.psi.numpy().copy()
+            edits.submit("press", lambda: press_columns(msg.edit_id, psi))
 
         def on_drape(msg: DrapeMsg) -> None:
             if not msg.final or msg.level != "fine":
@@ -238,6 +235,7 @@ def main(config: Config) -> None:
 
         bus.subscribe("pattern", on_pattern)
         bus.subscribe("mesh/fine", on_mesh)
+        bus.subscribe("psi/fine", on_psi)
         bus.subscribe("drape/fine", on_drape)
         bus.subscribe("edit", on_edit)
         try:

@@ -301,11 +301,6 @@ def serve(
             worker.submit(f"{slot}mesh/{m.mesh.level}", lambda m=m: take(m))
 
     def on_mesh(msg: MeshMsg) -> None:
-        # an unchanged mesh (re-sent to carry Ψ) is a repeat of the one held, dropped by the
-        # matcher; a solver restarted after a press gets it as the remesher's last mesh
-        held = service.levels.get(msg.level)
-        if msg.unchanged and held is not None and held.mesh_generation >= msg.mesh_generation:
-            return
         prolong = None
         if msg.fine_parent_tri is not None and msg.fine_bary is not None:
             prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
