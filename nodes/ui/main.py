@@ -447,7 +447,7 @@ def tryon_msg(op: dict, generation: int) -> TryOnMsg:
         op_id=uuid.uuid4().hex[:12],
         op=op["op"],
         panel=str(op.get("panel", "")),
-        vector=np.asarray(op.get("vector", [0.0, 0.0, 0.0]), np.float64),
+        vector=Array.from_numpy(np.asarray(op.get("vector", [0.0, 0.0, 0.0])), "float64"),
         angle=float(op.get("angle", 0.0)),
         seam=int(op.get("seam", -1)),
         sewn=bool(op.get("sewn", True)),
