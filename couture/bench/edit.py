@@ -13,13 +13,16 @@ Then, on the same nodes, ``--presses`` presses of ``param:length``, each
 followed at once by one drag: press -> first prediction = receive time of the
 gesture's first ``drape/predicted`` - send time of the press. Every other
 press emulates the path before Ψ had its own topic, when the remesher
-re-sent both meshes (with Ψ inside) on every press: the bench publishes the
-remesher's latest coarse and fine meshes again on ``mesh/coarse`` and
-``mesh/fine`` just before the press (what the receivers got extra per press,
-byte for byte: the mesh re-sends, Ψ besides; they decode and drop them as
-repeats). It approximates: the remesher's own encoding of the meshes
-(after Ψ, then) is done by the bench before the press instead, and the
-receivers now decode while the remesher computes Ψ.
+re-sent both meshes (with Ψ inside) after computing Ψ, and the sensitivity
+node decoded the fine one before its columns: the bench encodes and
+publishes the remesher's latest coarse and fine meshes again on
+``mesh/coarse`` and ``mesh/fine`` (the bytes the old path added per press),
+waits until a second session of its own has received and decoded the fine
+one (across the router, as the sensitivity node did), and only then sends
+the press; its latency counts from before the meshes. The mesh cost is so
+paid in series with the new path, as it was; the order differs (before Ψ,
+not after), and the nodes also decode the re-sends (and drop them as
+repeats) while the remesher computes Ψ.
 
 Pattern case: starts the same nodes (the solver that ``couture up`` runs
 unless ``--solver`` says otherwise), drapes the default skirt until its fine
@@ -64,7 +67,7 @@ def _wait_counter(client: Client, counter: str, timeout: float, poll: float) -> 
         time.sleep(poll)
 
 
-def _press_latency(client: Client, presses: int, timeout: float = 30.0) -> dict[str, Any]:
+def _press_latency(client: Client, probe: Client, presses: int, timeout: float = 30.0) -> dict[str, Any]:
     """Press -> first prediction [ms], alternating today's path ('new') and the
     mesh re-send per press emulated ('old_emulated'); see the module docstring."""
     first: dict[str, int] = {}
@@ -81,7 +84,7 @@ def _press_latency(client: Client, presses: int, timeout: float = 30.0) -> dict[
     for lv in pubs:
         m = client.latest_mesh(lv)
         assert m is not None, f"no mesh/{lv} seen"
-        resend[lv] = msgspec.structs.replace(m, seq=0, stamp_ns=0)  # the publisher stamps it anew
+        resend[lv] = m
     lat: dict[str, list[float]] = {"new": [], "old_emulated": []}
     missed: dict[str, int] = {"new": 0, "old_emulated": 0}
     for k in range(presses):
@@ -89,8 +92,14 @@ def _press_latency(client: Client, presses: int, timeout: float = 30.0) -> dict[
         time.sleep(1.0)  # the previous gesture's release settles
         t0 = time.perf_counter_ns()
         if mode == "old_emulated":
+            sent_ns = time.time_ns()
             for lv in ("coarse", "fine"):
-                pubs[lv].put(resend[lv])
+                pubs[lv].put(msgspec.structs.replace(resend[lv], seq=0, stamp_ns=0))  # stamped anew at each put
+            deadline = time.monotonic() + timeout
+            while not ((m := probe.latest_mesh("fine")) is not None and m.stamp_ns >= sent_ns):
+                if time.monotonic() > deadline:
+                    raise TimeoutError("the re-sent fine mesh never reached the probe session")
+                time.sleep(0.0005)
         press = client.send_edit("param:length", [0.0, 0.0], phase="press")
         client.send_edit("param:length", [1e-3, 0.0], phase="drag", edit_id=press.edit_id)
         deadline = time.monotonic() + timeout
@@ -167,7 +176,10 @@ def run(
         with lock:
             lat = np.array([(recv[d] - t) / 1e6 for d, t in sent.items() if d in recv])
         mesh = client.latest_mesh("fine")
-        press_ms = _press_latency(client, presses) if presses else None
+        press_ms = None
+        if presses:
+            with Client(bus=sup.child_bus) as probe:
+                press_ms = _press_latency(client, probe, presses)
     return {
         "fine_vertices": int(mesh.X.shape[0]) if mesh is not None else fine_vertices,
         "drags": drags,
@@ -372,7 +384,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['fine_vertices']:>9} {r['answered']:>9} {r['coalesced']:>9} {r['p50_ms'] or float('nan'):8.2f} "
             f"{r['p90_ms'] or float('nan'):8.2f} {r['p99_ms'] or float('nan'):8.2f}"
         )
-    print("press -> first prediction (old: both meshes re-sent per press, emulated)")
+    print("press -> first prediction (old: both meshes re-sent and decoded per press, emulated)")
     print(f"{'vertices':>9} {'MB/press':>9} {'new p50 ms':>11} {'old p50 ms':>11} {'new max':>8} {'old max':>8}")
 
     def ms(v: float | None) -> float:
