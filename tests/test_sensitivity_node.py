@@ -77,6 +77,12 @@ def test_press_drag_release_predicts_on_the_clients_design():
         assert got.psi.numpy().shape == (n, 2, 2) and np.any(got.psi.numpy())
         wait_for(lambda: any(m.level == "coarse" and m.edit_id == edit.edit_id for m in psis), 10, "the coarse Ψ")
         assert not meshes, "a press moves Ψ alone, no mesh"
+        # Ψ is the topic's history: a node that joins mid-drag (a restart) gets the gesture's
+        late: list[PsiMsg] = []
+        with Client(bus=sup.child_bus) as joiner:
+            joiner.bus.subscribe("psi/fine", late.append, PsiMsg)
+            wait_for(lambda: late, 10, "the last Ψ for a late joiner")
+        assert late[-1].edit_id == edit.edit_id and late[-1].mesh_generation == fine.mesh_generation
         mine = []
 
         def predicted() -> list:
