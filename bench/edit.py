@@ -9,6 +9,21 @@ drag, both on this machine's clock (one process sends and receives). Drags
 the sensitivity node coalesced (a newer one arrived before it finished) have
 no prediction of their own and are counted as ``coalesced``.
 
+Then, on the same nodes, ``--presses`` presses of ``param:length``, each
+followed at once by one drag: press -> first prediction = receive time of the
+gesture's first ``drape/predicted`` - send time of the press. Every other
+press emulates the path before Ψ had its own topic, when the remesher
+re-sent both meshes (with Ψ inside) after computing Ψ, and the sensitivity
+node decoded the fine one before its columns: the bench encodes and
+publishes the remesher's latest coarse and fine meshes again on
+``mesh/coarse`` and ``mesh/fine`` (the bytes the old path added per press),
+waits until a second session of its own has received and decoded the fine
+one (across the router, as the sensitivity node did), and only then sends
+the press; its latency counts from before the meshes. The mesh cost is so
+paid in series with the new path, as it was; the order differs (before Ψ,
+not after), and the nodes also decode the re-sends (and drop them as
+repeats) while the remesher computes Ψ.
+
 Pattern case: starts the same nodes (the solver that ``couture up`` runs
 unless ``--solver`` says otherwise), drapes the default skirt until its fine
 level converges, then publishes ``--changes`` pattern changes, each the skirt
@@ -37,7 +52,7 @@ from bench import add_out_arg, write_results
 from couture import supervisor
 from couture.bus import BusConfig, free_port
 from couture.client import Client
-from schemas import DrapeMsg
+from schemas import DrapeMsg, MeshMsg
 from schemas.design import Design, Resolution, Sloper
 
 
@@ -52,7 +67,69 @@ def _wait_counter(client: Client, counter: str, timeout: float, poll: float) -> 
         time.sleep(poll)
 
 
-def run(fine_vertices: int, drags: int, hz: float, solver: str = "newton", timeout: float = 300.0) -> dict:
+def _press_latency(client: Client, probe: Client, presses: int, timeout: float = 30.0) -> dict[str, Any]:
+    """Press -> first prediction [ms], alternating today's path ('new') and the
+    mesh re-send per press emulated ('old_emulated'); see the module docstring."""
+    first: dict[str, int] = {}
+    lock = threading.Lock()
+
+    def on_pred(msg: DrapeMsg) -> None:
+        t = time.perf_counter_ns()
+        with lock:
+            first.setdefault(msg.edit_id, t)
+
+    client.bus.subscribe("drape/predicted", on_pred, DrapeMsg)
+    pubs = {lv: client.bus.publisher(f"mesh/{lv}", MeshMsg) for lv in ("coarse", "fine")}
+    resend = {}
+    for lv in pubs:
+        m = client.latest_mesh(lv)
+        assert m is not None, f"no mesh/{lv} seen"
+        resend[lv] = m
+    lat: dict[str, list[float]] = {"new": [], "old_emulated": []}
+    missed: dict[str, int] = {"new": 0, "old_emulated": 0}
+    for k in range(presses):
+        mode = "old_emulated" if k % 2 else "new"
+        time.sleep(1.0)  # the previous gesture's release settles
+        t0 = time.perf_counter_ns()
+        if mode == "old_emulated":
+            sent_ns = time.time_ns()
+            for lv in ("coarse", "fine"):
+                pubs[lv].put(msgspec.structs.replace(resend[lv], seq=0, stamp_ns=0))  # stamped anew at each put
+            deadline = time.monotonic() + timeout
+            while not ((m := probe.latest_mesh("fine")) is not None and m.stamp_ns >= sent_ns):
+                if time.monotonic() > deadline:
+                    raise TimeoutError("the re-sent fine mesh never reached the probe session")
+                time.sleep(0.0005)
+        press = client.send_edit("param:length", [0.0, 0.0], phase="press")
+        client.send_edit("param:length", [1e-3, 0.0], phase="drag", edit_id=press.edit_id)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with lock:
+                t1 = first.get(press.edit_id)
+            if t1 is not None:
+                lat[mode].append((t1 - t0) / 1e6)
+                break
+            time.sleep(0.002)
+        else:
+            missed[mode] += 1
+        client.send_edit("param:length", [0.0, 0.0], phase="release", edit_id=press.edit_id)
+    mesh_bytes = sum(len(msgspec.msgpack.encode(m)) for m in resend.values())
+    out: dict[str, Any] = {"mesh_bytes_per_press_old": mesh_bytes}
+    for mode, v in lat.items():
+        a = np.array(v)
+        out[mode] = {
+            "presses": len(v) + missed[mode],
+            "answered": len(v),
+            "p50_ms": float(np.median(a)) if len(a) else None,
+            "max_ms": float(a.max()) if len(a) else None,
+            "all_ms": [round(x, 2) for x in v],
+        }
+    return out
+
+
+def run(
+    fine_vertices: int, drags: int, hz: float, solver: str = "newton", timeout: float = 300.0, presses: int = 10
+) -> dict:
     nodes = supervisor.default_nodes(solvers=[solver], ui=False)
     cfg = supervisor.SupervisorConfig(
         bus=BusConfig(session=f"e2e{uuid.uuid4().hex[:6]}", listen=[f"tcp/127.0.0.1:{free_port()}"]), nodes=nodes
@@ -99,6 +176,10 @@ def run(fine_vertices: int, drags: int, hz: float, solver: str = "newton", timeo
         with lock:
             lat = np.array([(recv[d] - t) / 1e6 for d, t in sent.items() if d in recv])
         mesh = client.latest_mesh("fine")
+        press_ms = None
+        if presses:
+            with Client(bus=sup.child_bus) as probe:
+                press_ms = _press_latency(client, probe, presses)
     return {
         "fine_vertices": int(mesh.X.shape[0]) if mesh is not None else fine_vertices,
         "drags": drags,
@@ -109,6 +190,7 @@ def run(fine_vertices: int, drags: int, hz: float, solver: str = "newton", timeo
         "p90_ms": float(np.percentile(lat, 90)) if len(lat) else None,
         "p99_ms": float(np.percentile(lat, 99)) if len(lat) else None,
         "max_ms": float(lat.max()) if len(lat) else None,
+        "press_to_first_prediction": press_ms,
     }
 
 
@@ -265,6 +347,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sizes", default="1600,10000", help="fine vertex targets")
     ap.add_argument("--drags", type=int, default=180)
     ap.add_argument("--hz", type=float, default=60.0)
+    ap.add_argument(
+        "--presses",
+        type=int,
+        default=10,
+        help="press -> first prediction: presses, alternately today's path and the mesh re-send per press emulated",
+    )
     add_out_arg(ap)
     ap.add_argument(
         "--case",
@@ -289,13 +377,27 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     if a.case == "pattern":
         return main_pattern(a)
-    rows = [run(int(s), a.drags, a.hz, solver=a.solver or "newton") for s in a.sizes.split(",")]
+    rows = [run(int(s), a.drags, a.hz, solver=a.solver or "newton", presses=a.presses) for s in a.sizes.split(",")]
     print(f"{'vertices':>9} {'answered':>9} {'coalesced':>9} {'p50 ms':>8} {'p90 ms':>8} {'p99 ms':>8}")
     for r in rows:
         print(
             f"{r['fine_vertices']:>9} {r['answered']:>9} {r['coalesced']:>9} {r['p50_ms'] or float('nan'):8.2f} "
             f"{r['p90_ms'] or float('nan'):8.2f} {r['p99_ms'] or float('nan'):8.2f}"
         )
+    print("press -> first prediction (old: both meshes re-sent and decoded per press, emulated)")
+    print(f"{'vertices':>9} {'MB/press':>9} {'new p50 ms':>11} {'old p50 ms':>11} {'new max':>8} {'old max':>8}")
+
+    def ms(v: float | None) -> float:
+        return float("nan") if v is None else v
+
+    for r in rows:
+        p = r["press_to_first_prediction"]
+        if p is not None:
+            new, old = p["new"], p["old_emulated"]
+            print(
+                f"{r['fine_vertices']:>9} {p['mesh_bytes_per_press_old'] / 1e6:9.2f} {ms(new['p50_ms']):11.1f} "
+                f"{ms(old['p50_ms']):11.1f} {ms(new['max_ms']):8.1f} {ms(old['max_ms']):8.1f}"
+            )
     big = max(rows, key=lambda r: r["fine_vertices"])
     goal = {"p50_ms": 16.0, "measured": big["p50_ms"], "met": big["p50_ms"] is not None and big["p50_ms"] <= 16.0}
     print(

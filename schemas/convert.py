@@ -21,9 +21,6 @@ def mesh_to_msg(
     *,
     generation: int | None = None,
     mesh_generation: int = 0,
-    psi: np.ndarray | None = None,
-    psi_edit_id: str = "",
-    unchanged: bool = False,
     design_id: str = "",
     fine_parent_tri: np.ndarray | None = None,
     fine_bary: np.ndarray | None = None,
@@ -43,9 +40,6 @@ def mesh_to_msg(
         seam_edges=_wire("seam_edges", mesh.seam_edges.reshape(-1, 2)),
         seam_weights=_wire("seam_weights", mesh.seam_weights),
         pinned=_wire("pinned", mesh.pinned),
-        psi=as_array(psi, "float64"),
-        psi_edit_id=psi_edit_id,
-        unchanged=unchanged,
         design_id=design_id,
         fine_parent_tri=as_array(fine_parent_tri, "int32"),
         fine_bary=as_array(fine_bary, "float64"),
@@ -54,7 +48,7 @@ def mesh_to_msg(
 
 def msg_to_mesh(msg: MeshMsg) -> GarmentMesh:
     """``couture/mesh/v1`` -> GarmentMesh (arrays copied, so writable).
-    Ψ and the coarse->fine map stay on the message (``msg.psi.numpy()``)."""
+    The coarse->fine map stays on the message (``msg.fine_bary.numpy()``)."""
     return GarmentMesh(
         X=msg.X.numpy().copy(),
         tris=msg.tris.numpy().copy(),

@@ -161,8 +161,9 @@ class EditMsg(Message, kw_only=True):
 
 
 class MeshMsg(Message, kw_only=True):
-    """A simulation mesh and, during an edit, Ψ. remesher -> solver,
-    sensitivity, ui. Keys ``mesh/coarse``, ``mesh/fine``.
+    """A simulation mesh. remesher -> solver, sensitivity, ui. Keys
+    ``mesh/coarse``, ``mesh/fine``; published once per mesh (Ψ of a press
+    travels apart, :class:`PsiMsg`).
 
     Converts to/from :class:`couture.mesh.GarmentMesh` with
     :func:`schemas.convert.mesh_to_msg` / :func:`schemas.convert.msg_to_mesh`.
@@ -178,7 +179,6 @@ class MeshMsg(Message, kw_only=True):
         "seam_edges": ArraySpec(I32, ("k", 2)),
         "seam_weights": ArraySpec(F64, ("k",), finite=True),
         "pinned": ArraySpec(I32, ("p",)),
-        "psi": ArraySpec(F64, ("n", 2, 2), finite=True, optional=True),
         "fine_parent_tri": ArraySpec(I32, ("n",), optional=True),
         "fine_bary": ArraySpec(F64, ("n", 3), finite=True, optional=True),
     }
@@ -205,24 +205,14 @@ class MeshMsg(Message, kw_only=True):
     """receiving point (1-w) x_a + w x_b, shape (k,), float64"""
     pinned: Array
     """vertices held at x0, shape (p,), int32"""
-    psi: Array | None = None
-    """Ψ for the active edit: dX_i = psi[i] @ dd, [m per unit of d], shape (n, 2, 2), float64"""
-    psi_edit_id: str = ""
-    """edit_id of the gesture psi belongs to ('' when psi is None)"""
     design_id: str = ""
     """design_id of the pattern this mesh was drafted from ('' when it had none)"""
-    unchanged: bool = False
-    """True when this message repeats the mesh already published for this level
-    and mesh_generation only to carry psi: a receiver that holds that mesh
-    keeps it and its state (drape on screen, solver state) and takes only psi"""
     fine_parent_tri: Array | None = None
     """fine level only: coarse triangle containing each fine vertex (in X), shape (n,), int32"""
     fine_bary: Array | None = None
     """fine level only: barycentric coordinates in fine_parent_tri, shape (n, 3), float64"""
 
     def check(self) -> None:
-        if self.unchanged and self.psi is None:
-            raise SchemaError(f"{self.TYPE}: field `$.unchanged`: a repeated mesh must carry psi")
         n = self.X.shape[0]
         for name in ("tris", "seam_emitters", "seam_edges", "pinned"):
             a = getattr(self, name).numpy()
@@ -231,6 +221,37 @@ class MeshMsg(Message, kw_only=True):
         tp = self.tri_panel.numpy()
         if self.panel_names and tp.size and (tp.min() < 0 or tp.max() >= len(self.panel_names)):
             raise SchemaError(f"{self.TYPE}: field `$.tri_panel`: panel index outside [0, {len(self.panel_names)})")
+
+
+class PsiMsg(Message, kw_only=True):
+    """Ψ of a press: how the rest shape of one mesh level moves with the
+    gesture's design point (SC §4). remesher -> sensitivity (and any node
+    that wants it). Keys ``psi/coarse``, ``psi/fine``, one message per press
+    and level; the mesh it belongs to was published before on
+    ``mesh/<level>`` and is named by ``generation`` (the header) and
+    ``mesh_generation``. Kept as the topic's history, so a node restarted
+    mid-drag gets the gesture's Ψ with the mesh."""
+
+    TYPE: ClassVar[str] = "couture/psi/v1"
+    ARRAYS: ClassVar[dict[str, ArraySpec]] = {
+        "psi": ArraySpec(F64, ("n", 2, 2), finite=True),
+    }
+    schema: str = "couture/psi/v1"
+    level: Literal["coarse", "fine"] = "fine"
+    """mesh level Ψ lives on"""
+    mesh_generation: int = 0
+    """mesh_generation of the mesh Ψ lives on"""
+    design_id: str = ""
+    """design_id of that mesh's pattern ('' when it had none)"""
+    edit_id: str
+    """the gesture (its press) Ψ belongs to"""
+    psi: Array
+    """dX_i = psi[i] @ dd for vertex i: rest-position change [m] per unit of
+    the edit's design point d, shape (n, 2, 2), float64 (n: the mesh's vertices)"""
+
+    def check(self) -> None:
+        if not self.edit_id:
+            raise SchemaError(f"{self.TYPE}: field `$.edit_id`: Ψ must name the gesture it belongs to")
 
 
 class DrapeMsg(Message, kw_only=True):
@@ -564,6 +585,7 @@ MESSAGE_TYPES: tuple[type[Message], ...] = (
     PatternMsg,
     EditMsg,
     MeshMsg,
+    PsiMsg,
     DrapeMsg,
     StatusMsg,
     RejectedMsg,
@@ -741,6 +763,7 @@ __all__ = [
     "PatternMsg",
     "EditMsg",
     "MeshMsg",
+    "PsiMsg",
     "DrapeMsg",
     "StatusMsg",
     "RejectedMsg",

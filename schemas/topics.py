@@ -25,6 +25,7 @@ from schemas.messages import (
     MeshMsg,
     Message,
     PatternMsg,
+    PsiMsg,
     RejectedMsg,
     SchemaError,
     SolveRequestMsg,
@@ -93,7 +94,7 @@ class Topic:
     """[bytes] the largest payload a receiver accepts; a larger one is dropped
     unread and counted (a flood of huge payloads must not stall a node). The
     mesh-sized topics allow a mesh at the largest target size (250k vertices:
-    about 35 MB with Ψ), with room to spare."""
+    about 27 MB), with room to spare."""
 
 
 TOPICS: tuple[Topic, ...] = (
@@ -169,6 +170,28 @@ TOPICS: tuple[Topic, ...] = (
         compared=True,
         publisher="remesher",
         max_bytes=128 * MiB,
+    ),
+    # Ψ of each press, apart from the mesh it lives on (a press moves Ψ alone); kept, so a
+    # node restarted mid-drag gets the gesture's Ψ, and sent at once (the first prediction waits on it)
+    Topic(
+        "psi/coarse",
+        PsiMsg,
+        Delivery(history=1, express=True),
+        recorded=True,
+        replayed=False,
+        compared=True,
+        publisher="remesher",
+        max_bytes=32 * MiB,
+    ),
+    Topic(
+        "psi/fine",
+        PsiMsg,
+        Delivery(history=1, express=True),
+        recorded=True,
+        replayed=False,
+        compared=True,
+        publisher="remesher",
+        max_bytes=32 * MiB,
     ),
     Topic(
         "drape/predicted",

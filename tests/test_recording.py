@@ -6,6 +6,7 @@ garbage on a recorded topic is recorded apart and never replayed)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -26,7 +27,7 @@ from couture.bus import BusConfig, free_port, open_session
 from couture.mesh import grid_sheet
 from couture.recording import SessionWriter, compare, read_session
 from couture.recording.parts import INFO_NAME, create_part, expand
-from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, StatusMsg, decode, encode
+from schemas import Array, DrapeMsg, EditMsg, MeshMsg, PatternMsg, PsiMsg, StatusMsg, decode, encode
 from schemas.convert import mesh_to_msg
 from schemas.design import Design, Sloper
 
@@ -442,3 +443,69 @@ def test_compare_reads_parts_and_leaves_rejected_out(tmp_path):
     assert rep.golden == f"{g} (+ golden.2.mcap)"
     rep = compare(str(a), str(tmp_path / "golden.1.mcap"))  # the other recording alone: no mesh
     assert not rep.ok and rep.topics["mesh/fine"].missing == ["mesh/fine gen=1"] and rep.topics["drape/coarse"].ok
+
+
+def _legacy_mesh(mesh_generation: int, edit_id: str = "", unchanged: bool = False, seed: int = 0) -> bytes:
+    """A couture/mesh/v1 payload as the remesher wrote it before Ψ had its own topic."""
+    msg = mesh_to_msg(grid_sheet(0.4, 0.3, 4, 3), generation=2, mesh_generation=mesh_generation, design_id="d1")
+    raw = msgspec.msgpack.decode(encode(msg))
+    psi = np.random.default_rng(seed).normal(size=(raw["X"]["shape"][0], 2, 2)) if edit_id else None
+    raw |= {
+        "psi": None if psi is None else msgspec.msgpack.decode(msgspec.msgpack.encode(Array.from_numpy(psi))),
+        "psi_edit_id": edit_id,
+        "unchanged": unchanged,
+        "seq": 7,
+        "stamp_ns": 123,
+    }
+    return msgspec.msgpack.encode(raw)
+
+
+LEGACY_FIELDS = {"psi", "psi_edit_id", "unchanged"}
+
+
+def test_legacy_meshes_with_psi_read_back_as_mesh_and_psi_messages(tmp_path):
+    """Recordings made when Ψ rode on the meshes (``psi``, ``psi_edit_id``,
+    ``unchanged``) read back as today's messages: a plain mesh as it is, a mesh
+    that carried Ψ as the mesh plus a psi message, an ``unchanged`` re-send as
+    the psi message alone; a topic filter on psi/* still finds them."""
+    path = tmp_path / "legacy.mcap"
+    with contextlib.closing(SessionWriter(str(path))) as w:
+        w.write("couture/s1/mesh/fine", _legacy_mesh(1), 1)
+        w.write("couture/s1/mesh/fine", _legacy_mesh(2, "e1", seed=1), 2)
+        w.write("couture/s1/mesh/fine", _legacy_mesh(2, "e2", unchanged=True, seed=2), 3)
+    recs = list(read_session(str(path)))
+    assert [r.topic for r in recs] == ["mesh/fine", "mesh/fine", "psi/fine", "psi/fine"]
+    assert [r.schema for r in recs] == ["couture/mesh/v1"] * 2 + ["couture/psi/v1"] * 2
+    assert recs[0].data == _legacy_mesh(1)  # nothing to migrate: byte for byte (its stale fields are ignored)
+    assert not LEGACY_FIELDS & set(msgspec.msgpack.decode(recs[1].data))
+    assert [decode(r.data, MeshMsg).mesh_generation for r in recs[:2]] == [1, 2]
+    psis = [decode(r.data, PsiMsg) for r in recs[2:]]
+    assert [(p.edit_id, p.mesh_generation, p.level, p.design_id, p.generation, p.seq, p.stamp_ns) for p in psis] == [
+        ("e1", 2, "fine", "d1", 2, 7, 123),
+        ("e2", 2, "fine", "d1", 2, 7, 123),
+    ]
+    np.testing.assert_array_equal(psis[1].psi.numpy(), np.random.default_rng(2).normal(size=psis[1].psi.numpy().shape))
+    assert psis[1].psi.numpy().shape[0] == decode(recs[1].data, MeshMsg).X.shape[0]
+    assert [r.log_time for r in recs[2:]] == [2, 3] and recs[2].key == "couture/s1/psi/fine"
+    assert [r.topic for r in read_session(str(path), ["psi/*"])] == ["psi/fine", "psi/fine"]
+    assert [r.topic for r in read_session(str(path), ["mesh/*"])] == ["mesh/fine", "mesh/fine"]
+
+
+@pytest.mark.parametrize("case", ["pattern_drag_and_tug", "solver_killed_mid_drag"])
+def test_checked_in_goldens_read_back_with_psi_apart(case):
+    """The goldens in recordings/ predate the psi topics: each press's Ψ reads
+    back on psi/coarse and psi/fine, on a mesh of the recording, and no mesh
+    twice (the re-sends that carried Ψ are gone)."""
+    path = Path(__file__).resolve().parents[1] / "recordings" / f"{case}.mcap"
+    edits = [decode(r.data, EditMsg) for r in read_session(str(path), ["edit"])]
+    presses = {e.edit_id for e in edits if e.phase == "press"}
+    psis = [decode(r.data, PsiMsg) for r in read_session(str(path), ["psi/*"])]
+    assert psis and {p.edit_id for p in psis} <= presses
+    for level in ("coarse", "fine"):
+        assert sorted(p.edit_id for p in psis if p.level == level) == sorted({p.edit_id for p in psis})
+    meshes = [decode(r.data, MeshMsg) for r in read_session(str(path), ["mesh/*"])]
+    keys = [(m.level, m.mesh_generation) for m in meshes]
+    assert len(keys) == len(set(keys)), "a re-send that carried Ψ read back as a mesh"
+    for p in psis:
+        mesh = next(m for m in meshes if (m.level, m.mesh_generation) == (p.level, p.mesh_generation))
+        assert p.psi.numpy().shape == (mesh.X.shape[0], 2, 2) and np.any(p.psi.numpy())

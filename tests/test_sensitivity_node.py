@@ -1,5 +1,5 @@
 """The sensitivity node across processes (remesher, a solver, sensitivity): a
-press on a sloper option gets its Ψ on an ``unchanged`` mesh re-send, drags get
+press on a sloper option gets its Ψ on ``psi/fine`` (and no mesh), drags get
 predictions on the fine mesh of exactly the client's design, and the release
 prediction closes the gesture."""
 
@@ -14,6 +14,7 @@ import pytest
 from couture import supervisor
 from couture.bus import BusConfig, free_port
 from couture.client import Client
+from schemas import MeshMsg, PsiMsg
 from schemas.design import Design, Resolution, Sloper
 
 pytestmark = [pytest.mark.timeout(300), pytest.mark.slow]
@@ -60,15 +61,28 @@ def test_press_drag_release_predicts_on_the_clients_design():
             60,
             "the sensitivity node's refactorization at the drape",
         )
+        psis: list[PsiMsg] = []
+        meshes: list[MeshMsg] = []
+        client.bus.subscribe("psi/*", psis.append, PsiMsg)
+        client.bus.subscribe("mesh/*", meshes.append, MeshMsg)
+        time.sleep(0.5)  # the meshes kept as history arrive first
+        meshes.clear()
         edit = client.send_edit("param:length", [0.0, 0.0], phase="press", param="length", dofs=["length"])
-        # Ψ rides on the fine mesh already held, marked unchanged
-        wait_for(
-            lambda: (m := client.latest_mesh("fine")) is not None and m.psi_edit_id == edit.edit_id,
+        got = wait_for(
+            lambda: [m for m in psis if m.level == "fine" and m.edit_id == edit.edit_id],
             30,
             "the remesher's Ψ for the press",
-        )
-        psi_mesh = client.latest_mesh("fine")
-        assert psi_mesh.unchanged and psi_mesh.psi is not None and psi_mesh.mesh_generation == fine.mesh_generation
+        )[0]
+        assert got.mesh_generation == fine.mesh_generation and got.generation == fine.generation
+        assert got.psi.numpy().shape == (n, 2, 2) and np.any(got.psi.numpy())
+        wait_for(lambda: any(m.level == "coarse" and m.edit_id == edit.edit_id for m in psis), 10, "the coarse Ψ")
+        assert not meshes, "a press moves Ψ alone, no mesh"
+        # Ψ is the topic's history: a node that joins mid-drag (a restart) gets the gesture's
+        late: list[PsiMsg] = []
+        with Client(bus=sup.child_bus) as joiner:
+            joiner.bus.subscribe("psi/fine", late.append, PsiMsg)
+            wait_for(lambda: late, 10, "the last Ψ for a late joiner")
+        assert late[-1].edit_id == edit.edit_id and late[-1].mesh_generation == fine.mesh_generation
         mine = []
 
         def predicted() -> list:
@@ -119,11 +133,7 @@ def test_press_drag_release_predicts_on_the_clients_design():
             viewport_px=[800, 800],
             dofs=["length"],
         )
-        wait_for(
-            lambda: (m := client.latest_mesh("fine")) is not None and m.psi_edit_id == tug.edit_id,
-            30,
-            "the remesher's Ψ for the tug",
-        )
+        wait_for(lambda: any(m.edit_id == tug.edit_id for m in psis), 30, "the remesher's Ψ for the tug")
         time.sleep(0.5)  # the columns
         client.send_edit(
             "",
@@ -141,7 +151,7 @@ def test_press_drag_release_predicts_on_the_clients_design():
             60,
             "the mesh of the tugged design",
         )
-        assert new.design_id and not new.unchanged
+        assert new.design_id and new.mesh_generation > fine.mesh_generation
 
 
 def test_a_press_at_once_after_the_drape_is_held_until_the_equilibrium():

@@ -11,10 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zenoh
+from msg_examples import minimal
 
 from couture.bus.session import publisher_options
 from couture.recording.compare import compare
-from couture.recording.mcapio import SessionWriter
+from couture.recording.mcapio import SessionWriter, check_payload, read_session
 from couture.recording.recorder import records
 from couture.recording.replay import ReplayConfig
 from schemas import DrapeMsg, encode, topics
@@ -63,6 +64,27 @@ def test_bus_delivery_follows_the_table(dummy_topics):
     assert publisher_options("drape/predicted")[0]["congestion_control"] == zenoh.CongestionControl.DROP
     assert publisher_options("pattern")[1] == 8 and publisher_options("mesh/fine")[1] == 1
     assert publisher_options("edit")[0]["express"] and publisher_options("status/ui")[1] == 0
+    # Ψ waits for a node restarted mid-drag, and goes out at once
+    assert publisher_options("psi/fine")[1] == 1 and publisher_options("psi/fine")[0]["express"]
+
+
+def test_every_row_records_checks_and_reads_back_its_type(tmp_path):
+    """Each row of the table, with a message of its type built from the schema
+    alone (a new type needs no edit here): the recorder's check passes it on its
+    key, refuses it on a key of another type, and it reads back as written."""
+    path = tmp_path / "all.mcap"
+    rows = {t.key.replace("*", "x"): t for t in topics.TOPICS}
+    sent = {key: encode(minimal(t.msg_type)) for key, t in rows.items()}
+    with contextlib.closing(SessionWriter(str(path))) as w:
+        for i, (key, data) in enumerate(sent.items()):
+            assert check_payload(key, data) == "", key
+            other = next(k for k, t in rows.items() if t.msg_type is not rows[key].msg_type)
+            assert "expected" in check_payload(other, data), (key, other)
+            w.write(f"couture/s1/{key}", data, i + 1)
+    back = {r.topic: r for r in read_session(str(path))}
+    assert set(back) == set(sent)
+    for key, r in back.items():
+        assert r.data == sent[key] and r.schema == rows[key].msg_type.TYPE
 
 
 def test_recorder_replay_compare_follow_the_table(dummy_topics):

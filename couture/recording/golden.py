@@ -266,8 +266,7 @@ def _final_drapes(path: Path | str) -> dict[str, tuple[Any, Any, Design | None]]
             designs[p.design_id] = p.design
         elif rec.topic.startswith("mesh/"):
             mm = decode(rec.data, MeshMsg)
-            if not mm.unchanged:
-                meshes[(mm.level, mm.mesh_generation)] = mm
+            meshes[(mm.level, mm.mesh_generation)] = mm
         else:
             d = decode(rec.data, DrapeMsg)
             if d.final:

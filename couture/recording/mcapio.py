@@ -17,6 +17,14 @@ byte on its own channel, topic ``rejected/<key>``, message encoding
 reason seen. :func:`read_session` leaves those out unless asked, so replay
 never re-sends them and compare never compares them.
 
+Recordings made before Ψ had its own topic hold Ψ inside ``couture/mesh/v1``
+payloads (fields ``psi``, ``psi_edit_id``, ``unchanged``; a mesh re-sent on
+every press only to carry it). :func:`read_session` migrates them as it reads
+(:func:`migrate_legacy`): such a payload becomes a ``couture/psi/v1`` message
+on ``psi/<level>``, preceded by the mesh without those fields unless it was
+such a re-send. Replay, compare and ``couture golden check`` read the old
+goldens as if recorded today.
+
 A writer never opens an existing file: :class:`SessionWriter` creates its
 file exclusively, and the recorder writes the next numbered part when its
 target exists (:mod:`couture.recording.parts`).
@@ -37,7 +45,8 @@ from mcap.writer import CompressionType, Writer
 
 from couture.recording.parts import PathLike, resolve
 from schemas import topics as topic_table
-from schemas.messages import REGISTRY, SchemaError, decode, json_schema
+from schemas.arrays import Array
+from schemas.messages import REGISTRY, MeshMsg, PsiMsg, SchemaError, decode, encode, json_schema
 
 MESSAGE_ENCODING = "msgpack"
 PROFILE = "couture"
@@ -213,6 +222,62 @@ def _head(data: bytes) -> tuple[str, int]:
         return "", 0
 
 
+class _LegacyPsi(msgspec.Struct):
+    """What a ``couture/mesh/v1`` payload recorded before ``couture/psi/v1``
+    existed carried for Ψ, with the header and mesh names a PsiMsg needs."""
+
+    seq: int = 0
+    stamp_ns: int = 0
+    generation: int = 0
+    level: str = "fine"
+    mesh_generation: int = 0
+    design_id: str = ""
+    psi: Array | None = None
+    psi_edit_id: str = ""
+    unchanged: bool = False
+
+
+_LEGACY_PSI = msgspec.msgpack.Decoder(_LegacyPsi)
+_LEGACY_MARK = b"\xa9unchanged"
+"""the msgpack key ``unchanged`` (a fixstr of 9 bytes): every legacy mesh payload has it, no current one"""
+
+
+def migrate_legacy(topic: str, data: bytes) -> list[tuple[str, bytes]]:
+    """A recorded payload as (topic, payload) pairs of today's messages: a
+    legacy ``mesh/<level>`` payload that carried Ψ becomes the mesh alone
+    (unless it was a re-send flagged ``unchanged``) followed by a
+    ``couture/psi/v1`` payload on ``psi/<level>`` with the mesh's header; any
+    other payload is returned as it is (an invalid one too: the reader's
+    checks name its problem)."""
+    if not topic.startswith("mesh/") or _LEGACY_MARK not in data:
+        return [(topic, data)]
+    try:
+        old = _LEGACY_PSI.decode(data)
+    except (msgspec.DecodeError, msgspec.ValidationError):
+        return [(topic, data)]
+    if old.psi is None and not old.unchanged:
+        return [(topic, data)]  # a plain mesh: the stale fields are ignored by the decoder
+    out: list[tuple[str, bytes]] = []
+    try:
+        if not old.unchanged:
+            out.append((topic, encode(decode(data, MeshMsg))))
+        if old.psi is not None and old.psi_edit_id and old.level in ("coarse", "fine"):
+            psi = PsiMsg(
+                seq=old.seq,
+                stamp_ns=old.stamp_ns,
+                generation=old.generation,
+                level=old.level,  # type: ignore[arg-type]
+                mesh_generation=old.mesh_generation,
+                design_id=old.design_id,
+                edit_id=old.psi_edit_id,
+                psi=old.psi,
+            )
+            out.append((f"psi/{old.level}", encode(psi)))
+    except SchemaError:
+        return [(topic, data)]
+    return out
+
+
 Which = Literal["valid", "rejected", "all"]
 
 
@@ -263,7 +328,7 @@ def _read_file(path: Path, topics: list[str] | None, strict: bool, which: Which)
                     continue
                 key = ch.topic[len(REJECTED_PREFIX) :] if is_rejected else ch.topic
                 _, topic = split_key(key)
-                if topics is not None and not any(topic_matches(p, topic) for p in topics):
+                if topics is not None and not any(topic_matches(p, t) for p in topics for t in _read_as(topic)):
                     continue
                 reason = ""
                 if is_rejected:  # the recorder's check again, for this payload's own reason
@@ -274,6 +339,9 @@ def _read_file(path: Path, topics: list[str] | None, strict: bool, which: Which)
                 else:
                     sch = schemas.get(ch.schema_id)
                     schema = sch.name if sch else ch.metadata.get("schema", "")
+                    if topic.startswith("mesh/"):
+                        yield from _migrated(key, topic, rec, topics, str(path))
+                        continue
                 yield Recorded(
                     key=key,
                     topic=topic,
@@ -284,6 +352,28 @@ def _read_file(path: Path, topics: list[str] | None, strict: bool, which: Which)
                     rejected=reason,
                     path=str(path),
                 )
+
+
+def _read_as(topic: str) -> tuple[str, ...]:
+    """The topics a recorded topic's messages may be read as (a legacy mesh: its Ψ too)."""
+    return (topic, "psi/" + topic[5:]) if topic.startswith("mesh/") else (topic,)
+
+
+def _migrated(key: str, topic: str, rec: Message, topics: list[str] | None, path: str) -> Iterator[Recorded]:
+    """A valid mesh record as today's messages (:func:`migrate_legacy`), filtered by ``topics``."""
+    prefix = key[: len(key) - len(topic)]
+    for t, data in migrate_legacy(topic, rec.data):
+        if topics is not None and not any(topic_matches(p, t) for p in topics):
+            continue
+        yield Recorded(
+            key=prefix + t,
+            topic=t,
+            schema=_head(data)[0],
+            data=data,
+            log_time=rec.log_time,
+            publish_time=rec.publish_time,
+            path=path,
+        )
 
 
 def topic_matches(pattern: str, topic: str) -> bool:

@@ -170,7 +170,7 @@ class Driver:
             self._cv.notify_all()
 
     def _on_mesh(self, msg: MeshMsg) -> None:
-        if msg.design_id and not msg.unchanged:
+        if msg.design_id:
             with self._cv:
                 self._given[msg.design_id] = msg.generation
                 self._cv.notify_all()

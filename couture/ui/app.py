@@ -100,7 +100,7 @@ class CoutureUI:
         self.on_pick: Callable[[MaterialPoint], None] | None = None
         self.on_tryon: Callable[[dict], None] | None = None
         """cb(op) of the Try-on folder's buttons (TryOnMsg's fields); the adapter publishes it"""
-        self.on_adjust: Callable[[str, float], None] | None = None
+        self.on_adjust: Callable[[str, float], object] | None = None
         """cb(loop, amount [m]) of the Adjust pattern folder; the adapter sends an
         ``adjust`` request and answers with :meth:`show_adjust_status`"""
         self.meshes: dict[str, GarmentMesh] = {}

@@ -1,4 +1,4 @@
-"""The remesher node: pattern -> mesh/coarse + mesh/fine, Ψ on press.
+"""The remesher node: pattern -> mesh/coarse + mesh/fine; press -> psi/coarse + psi/fine.
 
 A thin adapter over :class:`couture.remesh.service.RemeshService`, which also
 numbers the session's designs: meshes carry the generation it gave and the
@@ -25,13 +25,11 @@ import logging
 import threading
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from couture.bus import BusConfig, Node
 from couture.bus.worker import LatestWorker
 from couture.pattern.errors import PatternError
 from couture.remesh.service import MeshUpdate, RemeshService
-from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg
+from schemas import Array, DrapeMsg, EditMsg, MeshMsg, PatternMsg, PsiMsg, RejectedMsg
 from schemas.convert import mesh_to_msg
 
 log = logging.getLogger("remesher")
@@ -44,174 +42,190 @@ class Config:
     """node name, unique in the session (liveliness key status/<name>)"""
 
 
-def main(config: Config) -> None:
-    service = RemeshService()
-    with Node(config.name, config.bus, kind="remesher") as node:
-        bus = node.bus
-        pubs = {lv: bus.publisher(f"mesh/{lv}", MeshMsg) for lv in ("coarse", "fine")}
-        rejected_pub = bus.publisher("rejected", RejectedMsg)
-        worker = LatestWorker("remesh", on_error=node.error)
+class RemesherAdapter:
+    """Wires one :class:`RemeshService` to one bus: a handler per input
+    (pattern, edit, drape/*, mesh/*); the worker thread drafts, meshes and
+    publishes. Separate from :func:`main` so tests can drive it with their own Node."""
 
-        def reject(msg: PatternMsg, element: str, reason: str) -> None:
-            key = msg.identity()
-            node.count("bad_patterns")
-            node.error(f"pattern generation {msg.generation} (design {key}) rejected: {reason}")
-            rejected_pub.put(
-                RejectedMsg(
-                    node=config.name,
-                    generation=msg.generation,
-                    design_id=key,
-                    element=element,
-                    reason=reason,
-                    name=msg.name,
-                    source=msg.source,
+    def __init__(self, node: Node, config: Config) -> None:
+        self.node, self.name = node, config.name
+        self.service = RemeshService()
+        bus = node.bus
+        self.pubs = {lv: bus.publisher(f"mesh/{lv}", MeshMsg) for lv in ("coarse", "fine")}
+        self.psi_pubs = {lv: bus.publisher(f"psi/{lv}", PsiMsg) for lv in ("coarse", "fine")}
+        self.rejected_pub = bus.publisher("rejected", RejectedMsg)
+        self.worker = LatestWorker("remesh", on_error=node.error)
+        self._queued: str | None = None
+        """identity of the pattern queued and not yet started"""
+        self._queued_lock = threading.Lock()
+        bus.subscribe("pattern", self.on_pattern)
+        bus.subscribe("edit", self.on_edit)
+        bus.subscribe("drape/coarse", self.on_drape)
+        bus.subscribe("drape/fine", self.on_drape)
+        bus.subscribe("mesh/coarse", self.on_mesh)
+        bus.subscribe("mesh/fine", self.on_mesh)
+
+    def close(self) -> None:
+        self.worker.close()
+
+    # -- out
+    def reject(self, msg: PatternMsg, element: str, reason: str) -> None:
+        key = msg.identity()
+        self.node.count("bad_patterns")
+        self.node.error(f"pattern generation {msg.generation} (design {key}) rejected: {reason}")
+        self.rejected_pub.put(
+            RejectedMsg(
+                node=self.name,
+                generation=msg.generation,
+                design_id=key,
+                element=element,
+                reason=reason,
+                name=msg.name,
+                source=msg.source,
+            )
+        )
+
+    def publish(self, up: MeshUpdate) -> None:
+        service = self.service
+        msg = mesh_to_msg(
+            up.mesh,
+            generation=service.generation,
+            mesh_generation=up.mesh_generation,
+            design_id=service.design_id,
+            fine_parent_tri=up.fine_parent_tri,
+            fine_bary=up.fine_bary,
+        )
+        self.pubs[up.level].put(msg)
+
+    # -- in (Zenoh threads: judge and queue)
+    def on_pattern(self, msg: PatternMsg) -> None:
+        key = msg.identity()
+        with self._queued_lock:
+            older, self._queued = self._queued, key
+        if older is not None:
+            # newest pattern first: the queued one is never meshed nor numbered
+            self.node.count("superseded_patterns")
+            log.info("pattern %s superseded by %s before it was meshed", older, key)
+        self.worker.submit("pattern", lambda: self.mesh_pattern(msg))
+
+    def on_edit(self, msg: EditMsg) -> None:
+        if msg.phase != "press":
+            return
+        # a 3D tug drives a sloper parameter: its Ψ is dX/dg (column 0)
+        element = f"param:{msg.param}" if msg.picked_vertex >= 0 and msg.param else msg.element
+        if not element or self.off_design(msg):  # judged on arrival: a newer press would supersede the job
+            return
+        self.worker.submit("press", lambda: self.press(msg, element))
+
+    def on_drape(self, msg: DrapeMsg) -> None:
+        # a drape names its mesh too: after a restart the predecessor's meshes are gone with
+        # its publisher's history, the solver's drapes are not, and new meshes must number above them
+        what = f"drape/{msg.level} from {msg.solver or 'an unnamed node'}"
+        if self.observe(what, msg.generation, msg.mesh_generation) and msg.level in ("coarse", "fine"):
+            self.service.note_drape(msg.level, msg.mesh_generation, msg.x.numpy())
+
+    def on_mesh(self, msg: MeshMsg) -> None:
+        self.observe(f"mesh/{msg.level}", msg.generation, msg.mesh_generation)  # a predecessor's, after a restart
+
+    # -- work (the worker thread)
+    def mesh_pattern(self, msg: PatternMsg) -> None:
+        service, node, key = self.service, self.node, msg.identity()
+        with self._queued_lock:
+            if self._queued == key:
+                self._queued = None
+        generation = service.next_generation(msg.generation)
+        try:
+            updates = service.set_design(msg.design, generation, key)
+        except PatternError as e:
+            self.reject(msg, e.element, str(e))
+            return
+        except Exception as e:  # meshing failed: still an answer, never silence
+            log.exception("pattern generation %d (design %s): meshing failed", msg.generation, key)
+            self.reject(msg, "", f"the remesher could not mesh this design: {type(e).__name__}: {e}")
+            return
+        verdict = service.request_verdict(msg.generation, generation)
+        if verdict != "granted":
+            node.count("renumbered_patterns")
+            node.count(f"{verdict}_generations")
+            log.warning(
+                "pattern %s from %r asked for generation %d (%s: newest given %d): numbered %d",
+                key,
+                msg.source,
+                msg.generation,
+                "already used" if verdict == "stale" else "too far ahead",
+                generation - 1,
+                generation,
+            )
+        for up in updates:
+            self.publish(up)
+            log.info(
+                "gen %d %s: %d vertices (%s, %.0f ms)",
+                generation,
+                up.level,
+                up.mesh.n_vertices,
+                up.how,
+                1e3 * up.seconds,
+            )
+        node.count("meshes", len(updates))
+        self.worker.submit("warm", service.warm_coordinates)
+
+    def press(self, msg: EditMsg, element: str) -> None:
+        service = self.service
+        if self.off_design(msg):  # a pattern queued before it has been numbered since
+            return
+        try:
+            psis = service.psi_for(element)
+        except (PatternError, RuntimeError, KeyError) as e:
+            self.node.error(f"edit {msg.edit_id}: no Ψ for {element!r}: {e}")
+            return
+        # Ψ alone: the receivers hold the meshes it lives on (the fine one first, the
+        # sensitivity node's first prediction waits on it)
+        for level in sorted(psis, key=lambda lv: lv != "fine"):
+            self.psi_pubs[level].put(
+                PsiMsg(
+                    generation=service.generation,
+                    level="fine" if level == "fine" else "coarse",
+                    mesh_generation=service.levels[level].mesh_generation,
+                    design_id=service.design_id,
+                    edit_id=msg.edit_id,
+                    psi=Array.from_numpy(psis[level], "float64"),
                 )
             )
+        self.node.count("psi")
 
-        def publish(up: MeshUpdate, psi: np.ndarray | None = None, edit_id: str = "") -> None:
-            # Ψ rides on the mesh the receivers already hold, marked unchanged so
-            # that none of them resets its state to this mesh's x0
-            msg = mesh_to_msg(
-                up.mesh,
-                generation=service.generation,
-                mesh_generation=up.mesh_generation,
-                psi=psi,
-                psi_edit_id=edit_id,
-                unchanged=psi is not None,
-                design_id=service.design_id,
-                fine_parent_tri=up.fine_parent_tri,
-                fine_bary=up.fine_bary,
-            )
-            pubs[up.level].put(msg)
-
-        queued: dict[str, str] = {}
-        """slot -> identity of the pattern queued and not yet started"""
-        queued_lock = threading.Lock()
-
-        def on_pattern(msg: PatternMsg) -> None:
-            key = msg.identity()
-
-            def job() -> None:
-                with queued_lock:
-                    if queued.get("pattern") == key:
-                        del queued["pattern"]
-                generation = service.next_generation(msg.generation)
-                try:
-                    updates = service.set_design(msg.design, generation, key)
-                except PatternError as e:
-                    reject(msg, e.element, str(e))
-                    return
-                except Exception as e:  # meshing failed: still an answer, never silence
-                    log.exception("pattern generation %d (design %s): meshing failed", msg.generation, key)
-                    reject(msg, "", f"the remesher could not mesh this design: {type(e).__name__}: {e}")
-                    return
-                verdict = service.request_verdict(msg.generation, generation)
-                if verdict != "granted":
-                    node.count("renumbered_patterns")
-                    node.count(f"{verdict}_generations")
-                    log.warning(
-                        "pattern %s from %r asked for generation %d (%s: newest given %d): numbered %d",
-                        key,
-                        msg.source,
-                        msg.generation,
-                        "already used" if verdict == "stale" else "too far ahead",
-                        generation - 1,
-                        generation,
-                    )
-                for up in updates:
-                    publish(up)
-                    log.info(
-                        "gen %d %s: %d vertices (%s, %.0f ms)",
-                        generation,
-                        up.level,
-                        up.mesh.n_vertices,
-                        up.how,
-                        1e3 * up.seconds,
-                    )
-                node.count("meshes", len(updates))
-                worker.submit("warm", service.warm_coordinates)
-
-            with queued_lock:
-                older = queued.get("pattern")
-                queued["pattern"] = key
-            if older is not None:
-                # newest pattern first: the queued one is never meshed nor numbered
-                node.count("superseded_patterns")
-                log.info("pattern %s superseded by %s before it was meshed", older, key)
-            worker.submit("pattern", job)
-
-        def off_design(msg: EditMsg) -> bool:
-            """A press made on another design than the current one: logged, counted, no Ψ."""
-            verdict = service.judge_edit(msg.generation)
-            if verdict == "current":
-                return False
-            node.count(f"{verdict}_edits")
-            log.warning(
-                "edit %s: press on generation %d, the current design is %d (%s): no Ψ",
-                msg.edit_id,
-                msg.generation,
-                service.generation,
-                verdict,
-            )
-            return True
-
-        def on_edit(msg: EditMsg) -> None:
-            if msg.phase != "press":
-                return
-            # a 3D tug drives a sloper parameter: its Ψ is dX/dg (column 0)
-            element = f"param:{msg.param}" if msg.picked_vertex >= 0 and msg.param else msg.element
-            if not element or off_design(msg):  # judged on arrival: a newer press would supersede the job
-                return
-
-            def job() -> None:
-                if off_design(msg):  # a pattern queued before it has been numbered since
-                    return
-                try:
-                    psis = service.psi_for(element)
-                except (PatternError, RuntimeError, KeyError) as e:
-                    node.error(f"edit {msg.edit_id}: no Ψ for {element!r}: {e}")
-                    return
-                for level, st in service.levels.items():
-                    up = MeshUpdate(level, st.mesh, st.mesh_generation, "psi")
-                    if level == "fine" and service.fine_prolongation is not None:
-                        # the Ψ re-send is the topic's history: a solver restarted mid-drag takes it whole
-                        up.fine_parent_tri, up.fine_bary = service.fine_prolongation
-                    publish(up, psi=psis[level], edit_id=msg.edit_id)
-                node.count("psi")
-
-            worker.submit("press", job)
-
-        def observe(what: str, generation: int, mesh_generation: int = 0) -> bool:
-            if service.observe(generation, mesh_generation):
-                return True
-            node.count("foreign_generations")
-            log.warning(
-                "%s of generation %d ignored: above every design this remesher numbered (newest %d)",
-                what,
-                generation,
-                service.generation,
-            )
+    # -- judging numbers
+    def off_design(self, msg: EditMsg) -> bool:
+        """A press made on another design than the current one: logged, counted, no Ψ."""
+        verdict = self.service.judge_edit(msg.generation)
+        if verdict == "current":
             return False
+        self.node.count(f"{verdict}_edits")
+        log.warning(
+            "edit %s: press on generation %d, the current design is %d (%s): no Ψ",
+            msg.edit_id,
+            msg.generation,
+            self.service.generation,
+            verdict,
+        )
+        return True
 
-        def on_drape(msg: DrapeMsg) -> None:
-            # a drape names its mesh too: after a restart the predecessor's meshes are gone with
-            # its publisher's history, the solver's drapes are not, and new meshes must number above them
-            if observe(
-                f"drape/{msg.level} from {msg.solver or 'an unnamed node'}", msg.generation, msg.mesh_generation
-            ):
-                if msg.level in ("coarse", "fine"):
-                    service.note_drape(msg.level, msg.mesh_generation, msg.x.numpy())
+    def observe(self, what: str, generation: int, mesh_generation: int = 0) -> bool:
+        if self.service.observe(generation, mesh_generation):
+            return True
+        self.node.count("foreign_generations")
+        log.warning(
+            "%s of generation %d ignored: above every design this remesher numbered (newest %d)",
+            what,
+            generation,
+            self.service.generation,
+        )
+        return False
 
-        def on_mesh(msg: MeshMsg) -> None:
-            observe(f"mesh/{msg.level}", msg.generation, msg.mesh_generation)  # a predecessor's, after a restart
 
-        bus.subscribe("pattern", on_pattern)
-        bus.subscribe("edit", on_edit)
-        bus.subscribe("drape/coarse", on_drape)
-        bus.subscribe("drape/fine", on_drape)
-        bus.subscribe("mesh/coarse", on_mesh)
-        bus.subscribe("mesh/fine", on_mesh)
+def main(config: Config) -> None:
+    with Node(config.name, config.bus, kind="remesher") as node:
+        adapter = RemesherAdapter(node, config)
         try:
             node.run()
         finally:
-            worker.close()
+            adapter.close()

@@ -35,7 +35,7 @@ from couture.sensitivity.service import (
     SensitivityConfig,
     SensitivityService,
 )
-from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg
+from schemas import Array, DrapeMsg, EditMsg, MeshMsg, PatternMsg, PsiMsg
 from schemas.convert import msg_to_mesh
 
 log = logging.getLogger("sensitivity")
@@ -58,190 +58,206 @@ class Config:
     """[s] a press that came before its equilibrium waits at most this long"""
 
 
-def main(config: Config) -> None:
-    service = SensitivityService(
-        SensitivityConfig(
-            method=config.method,
-            pause_s=config.pause_s,
-            enrich_seconds=config.enrich_seconds,
-            enrich_tol=config.enrich_tol,
-            hold_s=config.hold_s,
-        )
-    )
-    with Node(config.name, config.bus, kind="sensitivity") as node:
-        service.count = node.count
-        node.readiness = service.readiness
-        bus = node.bus
-        pred_pub = bus.publisher("drape/predicted", DrapeMsg)
-        pattern_pub = bus.publisher("pattern", PatternMsg)
-        idle = LatestWorker("sensitivity-idle", on_error=node.error)
-        edits = LatestWorker("sensitivity-edit", on_error=node.error)
+class SensitivityAdapter:
+    """Wires one :class:`SensitivityService` to one bus: a handler per input
+    (pattern, mesh/fine, psi/fine, drape/fine, edit) and the idle tick; the
+    work goes to the ``edits`` and ``idle`` worker threads. Separate from
+    :func:`main` so tests can drive it with their own Node."""
 
-        def publish(out: PredictionOut | None) -> None:
-            if out is None:
-                return
-            pred_pub.put(
-                DrapeMsg(
-                    level="predicted",
-                    mesh_level="fine",
-                    mesh_generation=out.mesh_generation,
-                    x=out.x.astype(np.float32),
-                    d=out.d,
-                    edit_id=out.edit_id,
-                    method=out.method,
-                    error_estimate=out.error_estimate,
-                    error_estimate_m=out.error_estimate_m,
-                    generation=out.generation,
-                    final=True,
-                    diagnosis="release" if out.release else "",
+    def __init__(self, node: Node, config: Config) -> None:
+        self.node, self.config = node, config
+        self.service = SensitivityService(
+            SensitivityConfig(
+                method=config.method,
+                pause_s=config.pause_s,
+                enrich_seconds=config.enrich_seconds,
+                enrich_tol=config.enrich_tol,
+                hold_s=config.hold_s,
+            )
+        )
+        self.service.count = node.count
+        node.readiness = self.service.readiness
+        bus = node.bus
+        self.pred_pub = bus.publisher("drape/predicted", DrapeMsg)
+        self.pattern_pub = bus.publisher("pattern", PatternMsg)
+        self.idle = LatestWorker("sensitivity-idle", on_error=node.error)
+        self.edits = LatestWorker("sensitivity-edit", on_error=node.error)
+        bus.subscribe("pattern", self.on_pattern)
+        bus.subscribe("mesh/fine", self.on_mesh)
+        bus.subscribe("psi/fine", self.on_psi)
+        bus.subscribe("drape/fine", self.on_drape)
+        bus.subscribe("edit", self.on_edit)
+
+    def close(self) -> None:
+        self.edits.close()
+        self.idle.close()
+
+    # -- out
+    def publish(self, out: PredictionOut | None) -> None:
+        if out is None:
+            return
+        self.pred_pub.put(
+            DrapeMsg(
+                level="predicted",
+                mesh_level="fine",
+                mesh_generation=out.mesh_generation,
+                x=Array.from_numpy(out.x, "float32"),
+                d=Array.from_numpy(out.d, "float64"),
+                edit_id=out.edit_id,
+                method=out.method,
+                error_estimate=out.error_estimate,
+                error_estimate_m=out.error_estimate_m,
+                generation=out.generation,
+                final=True,
+                diagnosis="release" if out.release else "",
+            )
+        )
+
+    def take(self, m: Matched[GarmentMesh]) -> None:
+        self.idle.submit("mesh", lambda: self.service.take(m))
+
+    # -- in (Zenoh threads: the cheap calls, the rest queued)
+    def on_pattern(self, msg: PatternMsg) -> None:
+        for m in self.service.offer_design(msg.generation, msg.design, msg.identity()):
+            self.take(m)
+
+    def on_mesh(self, msg: MeshMsg) -> None:
+        if msg.level != "fine":
+            return
+        out = self.service.offer_mesh(msg.generation, msg.mesh_generation, msg_to_mesh(msg), msg.design_id)
+        if out.status == "stale":
+            self.node.count("stale_meshes")
+        if out.matched is not None:
+            self.take(out.matched)
+
+    def on_psi(self, msg: PsiMsg) -> None:
+        psi = msg.psi.numpy().copy()
+        self.edits.submit("press", lambda: self.press_columns(msg.edit_id, psi))
+
+    def on_drape(self, msg: DrapeMsg) -> None:
+        if not msg.final or msg.level != "fine":
+            return
+        x = msg.x.numpy().astype(np.float64)
+
+        def job() -> None:
+            if self.service.equilibrium(msg.mesh_generation, x) is not None:
+                self.node.count("refactors")
+                self.edits.submit("held", self.resume)
+
+        self.idle.submit("equilibrium", job)
+
+    def on_edit(self, msg: EditMsg) -> None:
+        service = self.service
+        if msg.phase == "press":
+            vp = msg.viewport_px
+            g = service.press(
+                Press(
+                    edit_id=msg.edit_id,
+                    element=msg.element,
+                    generation=msg.generation,
+                    param=msg.param,
+                    picked_vertex=msg.picked_vertex,
+                    view_proj=None if msg.view_proj is None else msg.view_proj.numpy().copy(),
+                    viewport=(vp[0], vp[1]) if len(vp) == 2 else (1, 1),
+                )
+            )
+            if g is not None:
+                self.node.count("presses")
+            return
+        if service.current(msg.edit_id) is None:
+            return
+        d_raw = msg.d.numpy().copy()
+        if msg.phase == "drag":
+            service.moved(msg.edit_id)
+            self.edits.submit("drag", lambda: self.predict(msg.edit_id, d_raw))
+        else:
+            self.edits.submit("drag", lambda: self.release(msg.edit_id, d_raw))
+
+    # -- edit work (edits worker)
+    def press_columns(self, edit_id: str, psi: np.ndarray) -> None:
+        try:
+            g = self.service.psi(edit_id, psi)
+        except NoEquilibrium as e:
+            self.node.error(str(e))
+            return
+        if g is not None and g.ready:
+            self.node.count("press_columns")
+            self.resume()
+
+    def resume(self) -> None:
+        """Serve what waited on the gesture (its drag, its release)."""
+        g = self.service.gesture
+        was_ready = g is not None and g.ready
+        try:
+            out = self.service.resume()
+        except (NoEquilibrium, PatternError) as e:
+            self.node.error(f"held edit: {e}")
+            return
+        if g is not None and g.ready and not was_ready:
+            self.node.count("press_columns")
+        if isinstance(out, ReleaseOut):
+            self.released(out)
+        elif out is not None:
+            self.published(out)
+
+    def predict(self, edit_id: str, d_raw: np.ndarray) -> None:
+        out = self.service.drag(edit_id, d_raw)
+        if out is not None:
+            self.published(out)
+
+    def published(self, out: PredictionOut) -> None:
+        self.publish(out)
+        self.node.count("predictions")
+        self.idle.submit("error", lambda: self.publish(self.service.estimate(out)))
+
+    def release(self, edit_id: str, d_raw: np.ndarray) -> None:
+        try:
+            r = self.service.release(edit_id, d_raw)
+        except PatternError as e:
+            self.node.error(f"3D tug {edit_id}: {e}")
+            return
+        if r is not None:
+            self.released(r)
+
+    def released(self, r: ReleaseOut) -> None:
+        self.publish(r.prediction)
+        if r.prediction is not None:
+            self.node.count("predictions")
+        if r.design is not None:
+            self.pattern_pub.put(
+                PatternMsg(
+                    design=r.design,
+                    generation=r.generation,
+                    design_id=r.design_id,
+                    source=self.config.name,
+                    name="3D tug",
                 )
             )
 
-        def take(m: Matched[GarmentMesh]) -> None:
-            idle.submit("mesh", lambda: service.take(m))
+    # -- idle enrichment: a short solve where the pointer pauses
+    def enrich(self, g: Gesture) -> None:
+        out = self.service.enrich(g)
+        if out is not None:
+            self.node.count("samples")
+            self.publish(out)
 
-        # -- inputs -----------------------------------------------------------
-        def on_pattern(msg: PatternMsg) -> None:
-            for m in service.offer_design(msg.generation, msg.design, msg.identity()):
-                take(m)
+    def tick(self) -> None:
+        held = self.service.expire()
+        if held is not None:
+            self.node.error(
+                f"edit {held.edit_id}: not ready within {self.config.hold_s:g} s (see the log); gesture given up"
+            )
+        if self.idle.pending("enrich"):
+            return
+        g = self.service.pause()
+        if g is not None:
+            self.idle.submit("enrich", lambda: self.enrich(g))
 
-        def on_mesh(msg: MeshMsg) -> None:
-            if msg.level != "fine":
-                return
-            if msg.psi is not None and msg.psi_edit_id:
-                psi = msg.psi.numpy().copy()
-                edits.submit("press", lambda: press_columns(msg.psi_edit_id, psi))
-            # an unchanged mesh (re-sent to carry Ψ) is a repeat of the one held, but a node
-            # restarted after a press gets it as the remesher's last mesh: its only mesh to take
-            if msg.unchanged and msg.mesh_generation == service.mesh_generation:
-                return
-            out = service.offer_mesh(msg.generation, msg.mesh_generation, msg_to_mesh(msg), msg.design_id)
-            if out.status == "stale":
-                node.count("stale_meshes")
-            if out.matched is not None:
-                take(out.matched)
 
-        def on_drape(msg: DrapeMsg) -> None:
-            if not msg.final or msg.level != "fine":
-                return
-            x = msg.x.numpy().astype(np.float64)
-
-            def job() -> None:
-                if service.equilibrium(msg.mesh_generation, x) is not None:
-                    node.count("refactors")
-                    edits.submit("held", resume)
-
-            idle.submit("equilibrium", job)
-
-        def on_edit(msg: EditMsg) -> None:
-            if msg.phase == "press":
-                g = service.press(
-                    Press(
-                        edit_id=msg.edit_id,
-                        element=msg.element,
-                        generation=msg.generation,
-                        param=msg.param,
-                        picked_vertex=msg.picked_vertex,
-                        view_proj=None if msg.view_proj is None else msg.view_proj.numpy().copy(),
-                        viewport=(tuple(msg.viewport_px) if len(msg.viewport_px) == 2 else (1, 1)),
-                    )
-                )  # type: ignore[arg-type]
-                if g is not None:
-                    node.count("presses")
-                return
-            if service.current(msg.edit_id) is None:
-                return
-            d_raw = msg.d.numpy().copy()
-            if msg.phase == "drag":
-                service.moved(msg.edit_id)
-                edits.submit("drag", lambda: predict(msg.edit_id, d_raw))
-            else:
-                edits.submit("drag", lambda: release(msg.edit_id, d_raw))
-
-        # -- edit work (edits worker) -----------------------------------------
-        def press_columns(edit_id: str, psi: np.ndarray) -> None:
-            try:
-                g = service.psi(edit_id, psi)
-            except NoEquilibrium as e:
-                node.error(str(e))
-                return
-            if g is not None and g.ready:
-                node.count("press_columns")
-                resume()
-
-        def resume() -> None:
-            """Serve what waited on the gesture (its drag, its release)."""
-            g = service.gesture
-            was_ready = g is not None and g.ready
-            try:
-                out = service.resume()
-            except (NoEquilibrium, PatternError) as e:
-                node.error(f"held edit: {e}")
-                return
-            if g is not None and g.ready and not was_ready:
-                node.count("press_columns")
-            if isinstance(out, ReleaseOut):
-                released(out)
-            elif out is not None:
-                published(out)
-
-        def predict(edit_id: str, d_raw: np.ndarray) -> None:
-            out = service.drag(edit_id, d_raw)
-            if out is not None:
-                published(out)
-
-        def published(out: PredictionOut) -> None:
-            publish(out)
-            node.count("predictions")
-            idle.submit("error", lambda: publish(service.estimate(out)))
-
-        def release(edit_id: str, d_raw: np.ndarray) -> None:
-            try:
-                r = service.release(edit_id, d_raw)
-            except PatternError as e:
-                node.error(f"3D tug {edit_id}: {e}")
-                return
-            if r is not None:
-                released(r)
-
-        def released(r: ReleaseOut) -> None:
-            publish(r.prediction)
-            if r.prediction is not None:
-                node.count("predictions")
-            if r.design is not None:
-                pattern_pub.put(
-                    PatternMsg(
-                        design=r.design,
-                        generation=r.generation,
-                        design_id=r.design_id,
-                        source=config.name,
-                        name="3D tug",
-                    )
-                )
-
-        # -- idle enrichment: a short solve where the pointer pauses ------------
-        def enrich(g: Gesture) -> None:
-            out = service.enrich(g)
-            if out is not None:
-                node.count("samples")
-                publish(out)
-
-        def tick() -> None:
-            held = service.expire()
-            if held is not None:
-                node.error(f"edit {held.edit_id}: not ready within {config.hold_s:g} s (see the log); gesture given up")
-            if idle.pending("enrich"):
-                return
-            g = service.pause()
-            if g is not None:
-                idle.submit("enrich", lambda: enrich(g))
-
-        bus.subscribe("pattern", on_pattern)
-        bus.subscribe("mesh/fine", on_mesh)
-        bus.subscribe("drape/fine", on_drape)
-        bus.subscribe("edit", on_edit)
+def main(config: Config) -> None:
+    with Node(config.name, config.bus, kind="sensitivity") as node:
+        adapter = SensitivityAdapter(node, config)
         try:
-            node.run(idle=tick, period_s=0.05)
+            node.run(idle=adapter.tick, period_s=0.05)
         finally:
-            edits.close()
-            idle.close()
+            adapter.close()

@@ -52,7 +52,18 @@ from couture.pattern.limits import check_simulation_values
 from couture.solvers import SOLVERS, get_solver
 from couture.solvers.service import IncomingMesh, LevelRun, SolveService, scene_from_design
 from couture.tryon import TryOnError
-from schemas import DrapeMsg, EditMsg, MeshMsg, PatternMsg, RejectedMsg, SolveRequestMsg, SolveResultMsg, TryOnMsg
+from schemas import (
+    Array,
+    DrapeMsg,
+    EditMsg,
+    MeshMsg,
+    PatternMsg,
+    RejectedMsg,
+    SolveRequestMsg,
+    SolveResultMsg,
+    TryOnMsg,
+)
+from schemas.arrays import as_array
 from schemas.convert import msg_to_mesh
 
 log = logging.getLogger("solver")
@@ -107,15 +118,6 @@ def make_service(config: Config) -> SolveService:
     return service
 
 
-@dataclass
-class Served:
-    """One design session a solver node serves."""
-
-    resubmit: Callable[[], None]
-    """queue a solve of the session's current design (a pool member that took the session over)"""
-    abort: Callable[[], None]
-
-
 class PoolShare:
     """Which of the served sessions a pool member solves: the i-th session (in
     the order every member is given) goes to the (i mod k)-th of the k live
@@ -149,29 +151,21 @@ def main(config: Config) -> None:
     with Node(config.name, config.bus, kind="solver") as node:
         worker = LatestWorker("solve", on_error=node.error)
         extra: list[Bus] = []
-        served: list[Served] = []
+        served: list[SolverAdapter] = []
         try:
             if not config.sessions:
-                served.append(serve(node.bus, node, config, worker))
+                served.append(SolverAdapter(node.bus, node, config, worker))
             else:
                 share = PoolShare(config.name, config.sessions)
-                by_session: dict[str, Served] = {}
+                by_session: dict[str, SolverAdapter] = {}
                 for s in config.sessions:
                     b = open_session(replace(config.bus, session=s), name=config.name)
                     extra.append(b)
                     b.stats = node.bus.stats  # one status counts for every session served
                     b.declare_token(config.name)
-                    by_session[s] = serve(b, node, config, worker, slot=f"{s}:", owns=partial(share.owns, s))
+                    by_session[s] = SolverAdapter(b, node, config, worker, slot=f"{s}:", owns=partial(share.owns, s))
                 served = list(by_session.values())
-
-                def on_member(name: str, alive: bool) -> None:
-                    for s in share.update(name, alive):
-                        log.info(
-                            "pool member %s %s: this member now solves session %s", name, "up" if alive else "gone", s
-                        )
-                        by_session[s].resubmit()
-
-                node.bus.watch_nodes(on_member)
+                PoolAdapter(node.bus, share, by_session)
                 log.info("solver pool member %s serving sessions %s", config.name, ", ".join(config.sessions))
             node.run()
         finally:
@@ -182,29 +176,76 @@ def main(config: Config) -> None:
                 b.close()
 
 
-def serve(
-    bus: Bus,
-    node: Node,
-    config: Config,
-    worker: LatestWorker,
-    *,
-    slot: str = "",
-    owns: Callable[[], bool] = lambda: True,
-) -> Served:
-    """Solve one session's designs on ``bus``: drapes, rejections, the solve queryable.
-    ``slot`` prefixes this session's jobs on the shared worker; ``owns()`` says
-    whether this node solves the session now (a pool shares sessions out)."""
-    service = make_service(config)
-    pubs = {lv: bus.publisher(f"drape/{lv}", DrapeMsg) for lv in ("coarse", "fine")}
-    rejected_pub = bus.publisher("rejected", RejectedMsg)
-    lock = threading.Lock()
-    state: dict = {"gesture": "", "dragging": False, "abort": False, "unfinished": False}
-    """unfinished: the last solve was cut off (a press, a new mesh, a try-on op);
-    a release that brings no new design resumes it"""
-    tryon_ops: list[TryOnMsg] = []
-    """try-on ops received, applied in order by the worker before its next solve"""
+class PoolAdapter:
+    """A solver pool member's watch on the other members (liveliness in the
+    pool's own session): when one comes or goes, the sessions this member now
+    owns are solved here."""
 
+    def __init__(self, bus: Bus, share: PoolShare, by_session: dict[str, SolverAdapter]) -> None:
+        self.share, self.by_session = share, by_session
+        bus.watch_nodes(self.on_member)
+
+    def on_member(self, name: str, alive: bool) -> None:
+        for s in self.share.update(name, alive):
+            log.info("pool member %s %s: this member now solves session %s", name, "up" if alive else "gone", s)
+            self.by_session[s].resubmit()
+
+
+def _always() -> bool:
+    return True
+
+
+class SolverAdapter:
+    """Solves one session's designs on ``bus``: a handler per input (pattern,
+    mesh/*, edit, drape/predicted, tryon, the solve queryable), drapes and
+    rejections out. ``slot`` prefixes this session's jobs on the node's shared
+    worker; ``owns()`` says whether this node solves the session now (a pool
+    shares sessions out)."""
+
+    def __init__(
+        self,
+        bus: Bus,
+        node: Node,
+        config: Config,
+        worker: LatestWorker,
+        *,
+        slot: str = "",
+        owns: Callable[[], bool] = _always,
+    ) -> None:
+        self.node, self.config, self.worker, self.slot, self.owns = node, config, worker, slot, owns
+        self.service = make_service(config)
+        self.pubs = {lv: bus.publisher(f"drape/{lv}", DrapeMsg) for lv in ("coarse", "fine")}
+        self.rejected_pub = bus.publisher("rejected", RejectedMsg)
+        self._lock = threading.Lock()
+        self.gesture = ""
+        """edit_id of the gesture pressed last"""
+        self.dragging = False
+        """a gesture is between its press and its release: no solve runs"""
+        self.aborting = False
+        """the running solve must stop (a press, a new mesh, a try-on op, shutdown)"""
+        self.unfinished = False
+        """the last solve was cut off (a press, a new mesh, a try-on op); a
+        release that brings no new design resumes it"""
+        self.tryon_ops: list[TryOnMsg] = []
+        """try-on ops received, applied in order by the worker before its next solve"""
+        bus.subscribe("pattern", self.on_pattern)
+        bus.subscribe("mesh/coarse", self.on_mesh)
+        bus.subscribe("mesh/fine", self.on_mesh)
+        bus.subscribe("edit", self.on_edit)
+        bus.subscribe("drape/predicted", self.on_prediction)
+        bus.subscribe("tryon", self.on_tryon)
+        bus.serve_solve(config.name, self.handle_solve)
+
+    def resubmit(self) -> None:
+        """Queue a solve of the session's current design (a pool member that took the session over)."""
+        self.worker.submit(f"{self.slot}solve", self.solve_job)
+
+    def abort(self) -> None:
+        self.aborting = True
+
+    # -- out
     def drape_msg(
+        self,
         level: str,
         x: np.ndarray,
         res: float,
@@ -214,80 +255,84 @@ def serve(
         diagnosis: str = "",
         final: bool = True,
     ) -> DrapeMsg:
-        lm = service.levels[level]
+        lm = self.service.levels[level]
         return DrapeMsg(
-            level=level,
-            x=x.astype(np.float32),
+            level="fine" if level == "fine" else "coarse",
+            x=Array.from_numpy(x, "float32"),
             residual=float(res),
             iterations=int(it),
-            solver=config.name,
-            method=config.solver,
+            solver=self.config.name,
+            method=self.config.solver,
             wall_time_s=float(wall),
             converged=converged,
             diagnosis=diagnosis,
             generation=lm.mesh.generation,
             mesh_generation=lm.mesh_generation,
             final=final,
-            edit_id=service.tryon_op_id,
+            edit_id=self.service.tryon_op_id,
             terms=list(getattr(lm.model, "terms", ())),
         )
 
-    def should_abort() -> bool:
-        return state["abort"] or node.stopping
+    def should_abort(self) -> bool:
+        return self.aborting or self.node.stopping
 
-    def on_progress(level: str, it: int, x: np.ndarray, res: float) -> None:
-        pubs[level].put(drape_msg(level, x, res, it, 0.0, final=False))
+    def on_progress(self, level: str, it: int, x: np.ndarray, res: float) -> None:
+        self.pubs[level].put(self.drape_msg(level, x, res, it, 0.0, final=False))
 
-    def on_level(run: LevelRun) -> None:
+    def on_level(self, run: LevelRun) -> None:
         r = run.result
-        pubs[run.level].put(drape_msg(run.level, r.x, r.residual, r.iterations, r.wall_time, r.converged, r.diagnosis))
-        node.count(f"solves/{run.level}")
+        self.pubs[run.level].put(
+            self.drape_msg(run.level, r.x, r.residual, r.iterations, r.wall_time, r.converged, r.diagnosis)
+        )
+        self.node.count(f"solves/{run.level}")
         log.info(
             "gen %d %s: residual %.2e after %d its in %.2f s (%s, from %s)%s",
-            service.levels[run.level].mesh.generation,
+            self.service.levels[run.level].mesh.generation,
             run.level,
             r.residual,
             r.iterations,
             r.wall_time,
-            config.solver,
+            self.config.solver,
             run.warm_start,
             f" [{r.diagnosis}]" if r.diagnosis else "",
         )
         if r.diagnosis and not r.converged and "abort" not in r.diagnosis.lower():
-            node.error(f"{run.level}: {r.diagnosis}")
+            self.node.error(f"{run.level}: {r.diagnosis}")
 
-    def solve_job() -> None:
-        if not owns():
+    # -- work (the worker thread)
+    def solve_job(self) -> None:
+        if not self.owns():
             return  # another member of the pool solves this session
-        with lock:
-            if state["dragging"] or not service.ready():
+        service = self.service
+        with self._lock:
+            if self.dragging or not service.ready():
                 # a mesh that arrives mid-drag waits for the release
-                state["unfinished"] = state["unfinished"] or (state["dragging"] and service.ready())
+                self.unfinished = self.unfinished or (self.dragging and service.ready())
                 return
-            state["abort"] = False
-            ops = list(tryon_ops)
-            tryon_ops.clear()
+            self.aborting = False
+            ops = list(self.tryon_ops)
+            self.tryon_ops.clear()
         for op in ops:
-            apply_tryon(op)
-        state["unfinished"] = True
+            self.apply_tryon(op)
+        self.unfinished = True
         service.run(
-            should_abort=should_abort,
-            on_progress=on_progress,
-            on_level=on_level,
-            progress_period_s=config.progress_period_s,
+            should_abort=self.should_abort,
+            on_progress=self.on_progress,
+            on_level=self.on_level,
+            progress_period_s=self.config.progress_period_s,
         )
-        state["unfinished"] = bool(state["abort"])
+        self.unfinished = self.aborting
 
-    def take(matched: Matched[IncomingMesh]) -> None:
+    def take(self, matched: Matched[IncomingMesh]) -> None:
         try:
-            ready = service.take(matched)
+            ready = self.service.take(matched)
         except PatternError as e:
             m = matched.mesh
-            node.count("bad_designs")
-            node.error(f"mesh/{m.level} of generation {m.generation} (design {m.design_id or '?'}) rejected: {e}")
-            rejected_pub.put(
+            self.node.count("bad_designs")
+            self.node.error(f"mesh/{m.level} of generation {m.generation} (design {m.design_id or '?'}) rejected: {e}")
+            self.rejected_pub.put(
                 RejectedMsg(
-                    node=config.name,
+                    node=self.config.name,
                     generation=m.generation,
                     design_id=m.design_id,
                     element=e.element,
@@ -295,76 +340,14 @@ def serve(
                 )
             )
             return
-        node.count("meshes_taken")
+        self.node.count("meshes_taken")
         if ready:
-            worker.submit(f"{slot}solve", solve_job)
+            self.worker.submit(f"{self.slot}solve", self.solve_job)
 
-    def on_pattern(msg: PatternMsg) -> None:
-        for m in service.offer_design(msg.generation, msg.design, msg.identity()):
-            worker.submit(f"{slot}mesh/{m.mesh.level}", lambda m=m: take(m))
-
-    def on_mesh(msg: MeshMsg) -> None:
-        # an unchanged mesh (re-sent to carry Ψ) is a repeat of the one held, dropped by the
-        # matcher; a solver restarted after a press gets it as the remesher's last mesh
-        held = service.levels.get(msg.level)
-        if msg.unchanged and held is not None and held.mesh_generation >= msg.mesh_generation:
-            return
-        prolong = None
-        if msg.fine_parent_tri is not None and msg.fine_bary is not None:
-            prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
-        out = service.offer_mesh(
-            msg.level, msg.generation, msg.mesh_generation, IncomingMesh(msg_to_mesh(msg), prolong), msg.design_id
-        )
-        if out.status == "stale":
-            node.count("stale_meshes")
-        matched = out.matched
-        if matched is None:
-            return
-        state["abort"] = True  # a new mesh supersedes the running solve
-        worker.submit(f"{slot}mesh/{msg.level}", lambda: take(matched))
-
-    def on_edit(msg: EditMsg) -> None:
-        if msg.phase == "press":
-            verdict = service.judge_edit(msg.generation)
-            if verdict != "current":
-                node.count(f"{verdict}_edits")
-                log.warning(
-                    "edit %s: press on generation %d, this solver's design is %d (%s): ignored",
-                    msg.edit_id,
-                    msg.generation,
-                    service.generation,
-                    verdict,
-                )
-                return
-            state["gesture"] = msg.edit_id
-            state["dragging"] = True
-            state["abort"] = True
-            node.count("presses")
-        elif msg.phase == "release" and msg.edit_id == state["gesture"]:
-            state["dragging"] = False
-            if state["unfinished"]:
-                # the press cut a solve off; a gesture that ends where it began (or a
-                # design the remesher refuses) brings no new mesh to restart it
-                node.count("resumed_solves")
-                worker.submit(f"{slot}solve", solve_job)
-
-    def on_prediction(msg: DrapeMsg) -> None:
-        # a prediction lives on a mesh this solver matched (the release's is
-        # the warm start of the next design's mesh, numbered later)
-        if service.judge_edit(msg.generation) == "foreign":
-            node.count("foreign_predictions")
-            log.warning(
-                "prediction for edit %s of generation %d ignored: this solver's newest design is %d",
-                msg.edit_id,
-                msg.generation,
-                service.generation,
-            )
-            return
-        service.set_prediction(msg.mesh_level, msg.mesh_generation, msg.x.numpy())
-
-    def apply_tryon(msg: TryOnMsg) -> None:
+    def apply_tryon(self, msg: TryOnMsg) -> None:
+        service = self.service
         if service.judge_edit(msg.generation) != "current":
-            node.count("stale_tryon")
+            self.node.count("stale_tryon")
             log.warning(
                 "try-on %s %s on generation %d ignored: this solver's design is %d",
                 msg.op,
@@ -384,12 +367,12 @@ def serve(
                 op_id=msg.op_id,
             )
         except TryOnError as e:
-            node.count("bad_tryon")
-            node.error(f"try-on {msg.op} {msg.op_id}: {e}")
+            self.node.count("bad_tryon")
+            self.node.error(f"try-on {msg.op} {msg.op_id}: {e}")
             # the sender waits for a drape answering the op: tell it there will be none
-            rejected_pub.put(
+            self.rejected_pub.put(
                 RejectedMsg(
-                    node=config.name,
+                    node=self.config.name,
                     generation=msg.generation,
                     element=f"tryon.{msg.op}",
                     reason=f"try-on {msg.op} refused: {e}",
@@ -398,25 +381,85 @@ def serve(
                 )
             )
             return
-        node.count("tryon")
+        self.node.count("tryon")
         log.info("try-on %s %s applied (panel %r, seam %d)", msg.op, msg.op_id, msg.panel, msg.seam)
 
-    def on_tryon(msg: TryOnMsg) -> None:
-        # applied by the worker thread, between solves (the models change)
-        with lock:
-            tryon_ops.append(msg)
-        state["abort"] = True
-        worker.submit(f"{slot}solve", solve_job)
+    # -- in (Zenoh threads: judge and queue)
+    def on_pattern(self, msg: PatternMsg) -> None:
+        for m in self.service.offer_design(msg.generation, msg.design, msg.identity()):
+            self.worker.submit(f"{self.slot}mesh/{m.mesh.level}", partial(self.take, m))
 
-    def handle_solve(req: SolveRequestMsg) -> SolveResultMsg:
-        design = req.design or service.design
+    def on_mesh(self, msg: MeshMsg) -> None:
+        prolong = None
+        if msg.fine_parent_tri is not None and msg.fine_bary is not None:
+            prolong = (msg.fine_parent_tri.numpy().copy(), msg.fine_bary.numpy().copy())
+        out = self.service.offer_mesh(
+            msg.level, msg.generation, msg.mesh_generation, IncomingMesh(msg_to_mesh(msg), prolong), msg.design_id
+        )
+        if out.status == "stale":
+            self.node.count("stale_meshes")
+        matched = out.matched
+        if matched is None:
+            return
+        self.aborting = True  # a new mesh supersedes the running solve
+        self.worker.submit(f"{self.slot}mesh/{msg.level}", partial(self.take, matched))
+
+    def on_edit(self, msg: EditMsg) -> None:
+        if msg.phase == "press":
+            verdict = self.service.judge_edit(msg.generation)
+            if verdict != "current":
+                self.node.count(f"{verdict}_edits")
+                log.warning(
+                    "edit %s: press on generation %d, this solver's design is %d (%s): ignored",
+                    msg.edit_id,
+                    msg.generation,
+                    self.service.generation,
+                    verdict,
+                )
+                return
+            self.gesture = msg.edit_id
+            self.dragging = True
+            self.aborting = True
+            self.node.count("presses")
+        elif msg.phase == "release" and msg.edit_id == self.gesture:
+            self.dragging = False
+            if self.unfinished:
+                # the press cut a solve off; a gesture that ends where it began (or a
+                # design the remesher refuses) brings no new mesh to restart it
+                self.node.count("resumed_solves")
+                self.worker.submit(f"{self.slot}solve", self.solve_job)
+
+    def on_prediction(self, msg: DrapeMsg) -> None:
+        # a prediction lives on a mesh this solver matched (the release's is
+        # the warm start of the next design's mesh, numbered later)
+        if self.service.judge_edit(msg.generation) == "foreign":
+            self.node.count("foreign_predictions")
+            log.warning(
+                "prediction for edit %s of generation %d ignored: this solver's newest design is %d",
+                msg.edit_id,
+                msg.generation,
+                self.service.generation,
+            )
+            return
+        self.service.set_prediction(msg.mesh_level, msg.mesh_generation, msg.x.numpy())
+
+    def on_tryon(self, msg: TryOnMsg) -> None:
+        # applied by the worker thread, between solves (the models change)
+        with self._lock:
+            self.tryon_ops.append(msg)
+        self.aborting = True
+        self.worker.submit(f"{self.slot}solve", self.solve_job)
+
+    def handle_solve(self, req: SolveRequestMsg) -> SolveResultMsg:
+        config = self.config
+        design = req.design or self.service.design
         if design is None:
             raise RuntimeError("request has no design and this solver has seen no pattern")
         check_simulation_values(design)  # PatternError naming the field: the result's error
         if req.mesh is not None:
             mesh = msg_to_mesh(req.mesh)
         else:
-            lm = service.levels.get(req.level)
+            lm = self.service.levels.get(req.level)
             if lm is None or lm.mesh_generation != req.mesh_generation:
                 raise RuntimeError(f"no {req.level} mesh of mesh_generation {req.mesh_generation} here")
             mesh = lm.mesh
@@ -436,23 +479,10 @@ def serve(
             method=config.solver,
             level=req.level,
             mesh_generation=req.mesh_generation,
-            x=r.x,
+            x=as_array(r.x),
             residual=r.residual,
             iterations=r.iterations,
             wall_time_s=r.wall_time,
             converged=r.converged,
             diagnosis=r.diagnosis,
         )
-
-    bus.subscribe("pattern", on_pattern)
-    bus.subscribe("mesh/coarse", on_mesh)
-    bus.subscribe("mesh/fine", on_mesh)
-    bus.subscribe("edit", on_edit)
-    bus.subscribe("drape/predicted", on_prediction)
-    bus.subscribe("tryon", on_tryon)
-    bus.serve_solve(config.name, handle_solve)
-
-    def abort() -> None:
-        state["abort"] = True
-
-    return Served(resubmit=lambda: worker.submit(f"{slot}solve", solve_job), abort=abort)

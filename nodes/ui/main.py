@@ -252,16 +252,14 @@ class UIAdapter:
             early = [m for m in self._early.values() if m.generation <= self.view.top]
             for m in early:
                 del self._early[(m.solver, m.level)]
-            if not msg.unchanged:
-                self._newest_mesh = (msg.stamp_ns, msg.design_id)
-                rej = self._rejected
-                if rej is not None and msg.stamp_ns > rej[0] and not _same_design(msg.design_id, rej[1]):
-                    self._rejected, clear = None, True  # a later design was meshed
+            self._newest_mesh = (msg.stamp_ns, msg.design_id)
+            rej = self._rejected
+            if rej is not None and msg.stamp_ns > rej[0] and not _same_design(msg.design_id, rej[1]):
+                self._rejected, clear = None, True  # a later design was meshed
         if clear:
             self.ui.set_rejection("")
         self._adopt(adopt, shown)
-        if not msg.unchanged:  # else: the mesh on screen, repeated to carry Ψ: keep the drape shown
-            self.ui.show_mesh(msg_to_mesh(msg))
+        self.ui.show_mesh(msg_to_mesh(msg))
         for m in early:
             self.on_drape(m)
 
@@ -459,7 +457,7 @@ def tryon_msg(op: dict, generation: int) -> TryOnMsg:
         op_id=uuid.uuid4().hex[:12],
         op=op["op"],
         panel=str(op.get("panel", "")),
-        vector=np.asarray(op.get("vector", [0.0, 0.0, 0.0]), np.float64),
+        vector=Array.from_numpy(np.asarray(op.get("vector", [0.0, 0.0, 0.0])), "float64"),
         angle=float(op.get("angle", 0.0)),
         seam=int(op.get("seam", -1)),
         sewn=bool(op.get("sewn", True)),
