@@ -81,7 +81,7 @@ KINDS: dict[str, NodeKind] = {
     "remesher": NodeKind(
         "nodes.remesher",
         takes=("pattern", "edit", "mesh/coarse", "mesh/fine", "drape/coarse", "drape/fine"),
-        gives=("mesh/coarse", "mesh/fine", "rejected"),
+        gives=("mesh/coarse", "mesh/fine", "psi/coarse", "psi/fine", "rejected"),
         optional=("edit", "drape/coarse", "drape/fine"),
     ),
     "solver": NodeKind(
@@ -92,7 +92,7 @@ KINDS: dict[str, NodeKind] = {
     ),
     "sensitivity": NodeKind(
         "nodes.sensitivity",
-        takes=("pattern", "edit", "mesh/fine", "drape/fine"),
+        takes=("pattern", "edit", "mesh/fine", "psi/fine", "drape/fine"),
         gives=("drape/predicted", "pattern"),
         optional=("edit",),
     ),
