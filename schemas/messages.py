@@ -581,20 +581,9 @@ class AdjustStatusMsg(Message, kw_only=True):
     a design says only what its sloper options can, so it may fall short of ``amount``"""
 
 
-MESSAGE_TYPES: tuple[type[Message], ...] = (
-    PatternMsg,
-    EditMsg,
-    MeshMsg,
-    PsiMsg,
-    DrapeMsg,
-    StatusMsg,
-    RejectedMsg,
-    SolveRequestMsg,
-    SolveResultMsg,
-    TryOnMsg,
-    AdjustMsg,
-    AdjustStatusMsg,
-)
+MESSAGE_TYPES: tuple[type[Message], ...] = tuple(cls for cls in Message.__subclasses__() if cls.__module__ == __name__)
+"""every message class defined in this module, in the order defined: a class is
+registered by being defined (then its topic row in ``schemas.topics``)"""
 
 REGISTRY: dict[str, type[Message]] = {cls.TYPE: cls for cls in MESSAGE_TYPES}
 """versioned type name -> class"""
