@@ -625,6 +625,17 @@ def contact_stiffness(phi, grad, hess, offset, k_c, eps, project, diag_slots, bl
                     data[base + i * st + j] += blk[i, j]
 
 
+@njit(cache=True, inline="always")
+def _slide(x, anchor, normal, v):
+    """P (x_v - a_v), P = I - n nᵀ: vertex v's tangential displacement from its
+    anchor, in the plane of the normal frozen at the anchor."""
+    d0 = x[v, 0] - anchor[v, 0]
+    d1 = x[v, 1] - anchor[v, 1]
+    d2 = x[v, 2] - anchor[v, 2]
+    dn = d0 * normal[v, 0] + d1 * normal[v, 1] + d2 * normal[v, 2]
+    return d0 - dn * normal[v, 0], d1 - dn * normal[v, 1], d2 - dn * normal[v, 2]
+
+
 @njit(cache=True)
 def anchor_forces(x, anchored, anchor, normal, k_t, f):
     """Tangential anchor springs E = k_t/2 |P (x - a)|², P = I - n n^T with the
@@ -632,13 +643,7 @@ def anchor_forces(x, anchored, anchor, normal, k_t, f):
     e = 0.0
     for v in range(x.shape[0]):
         if anchored[v]:
-            d0 = x[v, 0] - anchor[v, 0]
-            d1 = x[v, 1] - anchor[v, 1]
-            d2 = x[v, 2] - anchor[v, 2]
-            dn = d0 * normal[v, 0] + d1 * normal[v, 1] + d2 * normal[v, 2]
-            t0 = d0 - dn * normal[v, 0]
-            t1 = d1 - dn * normal[v, 1]
-            t2 = d2 - dn * normal[v, 2]
+            t0, t1, t2 = _slide(x, anchor, normal, v)
             e += 0.5 * k_t * (t0 * t0 + t1 * t1 + t2 * t2)
             f[v, 0] -= k_t * t0
             f[v, 1] -= k_t * t1
@@ -1008,13 +1013,7 @@ def huber_anchor_forces(x, anchored, anchor, normal, slip, limit, f):
     e = 0.0
     for v in range(x.shape[0]):
         if anchored[v]:
-            d0 = x[v, 0] - anchor[v, 0]
-            d1 = x[v, 1] - anchor[v, 1]
-            d2 = x[v, 2] - anchor[v, 2]
-            dn = d0 * normal[v, 0] + d1 * normal[v, 1] + d2 * normal[v, 2]
-            t0 = d0 - dn * normal[v, 0]
-            t1 = d1 - dn * normal[v, 1]
-            t2 = d2 - dn * normal[v, 2]
+            t0, t1, t2 = _slide(x, anchor, normal, v)
             s = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
             c = limit[v]
             k_t = c / slip
@@ -1037,11 +1036,7 @@ def huber_anchor_stiffness(x, anchored, anchor, normal, slip, limit, diag_slots,
     for v in range(anchored.shape[0]):
         if anchored[v]:
             d = np.empty(3)
-            for i in range(3):
-                d[i] = x[v, i] - anchor[v, i]
-            dn = d[0] * normal[v, 0] + d[1] * normal[v, 1] + d[2] * normal[v, 2]
-            for i in range(3):
-                d[i] -= dn * normal[v, i]
+            d[0], d[1], d[2] = _slide(x, anchor, normal, v)
             s = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
             c = limit[v]
             k_t = c / slip
