@@ -87,3 +87,55 @@ def test_huber_no_equilibrium_above_mu_s_is_never_called_converged(method):
     assert not res.converged and res.diagnosis
     ok, _, _ = verdict(m, res.x, 1e-6)
     assert not ok
+
+
+def test_a_huber_design_drapes_through_the_solver_service_with_its_state_carried():
+    """What ships: a design that asks for 'huber' friction, built as the solver node
+    builds it (SolveService from the design), drapes coarse then fine; the fine
+    level starts from the coarse level's anchors (carried, not released) and both
+    levels converge without a slip event."""
+    import msgspec
+
+    from couture.pattern.io import EXAMPLES, load_design
+    from couture.remesh.service import RemeshService
+    from couture.solvers import cascadic
+    from couture.solvers.service import SolveService
+    from schemas.design import Resolution
+
+    design = load_design(EXAMPLES / "default_skirt.json")
+    design = msgspec.structs.replace(
+        design,
+        resolution=Resolution(coarse_vertices=200, fine_vertices=600),
+        scene=msgspec.structs.replace(design.scene, friction=True, friction_model="huber"),
+    )
+    service = SolveService(method="newton")
+    service.set_design(design)
+    for up in RemeshService().set_design(design, 1):
+        prolong = None
+        if up.fine_parent_tri is not None and up.fine_bary is not None:
+            prolong = (up.fine_parent_tri, up.fine_bary)
+        service.set_mesh(up.level, up.mesh, up.mesh_generation, prolong)
+    assert service.levels["fine"].model.friction_model == "huber"
+    carried: list[int] = []
+    real = cascadic.carry_friction
+
+    def spy(*a, **kw):
+        carried.append(real(*a, **kw))
+        return carried[-1]
+
+    import couture.solvers.service as svc
+
+    old, svc.carry_friction = svc.carry_friction, spy
+    try:
+        runs = {run.level: run for run in service.run()}
+    finally:
+        svc.carry_friction = old
+    assert runs["fine"].warm_start == "prolongated"
+    assert carried and carried[0] > 0, "no anchor was carried from the coarse level"
+    for level, run in runs.items():
+        assert run.result.converged, f"{level}: {run.result.diagnosis}"
+        assert run.result.stats.get("slipped", 0) == 0
+    model = service.levels["fine"].model
+    ok, _, why = verdict(model, runs["fine"].result.x, 1e-4)
+    assert ok, why
+    assert model.anchored.any()
