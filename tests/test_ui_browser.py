@@ -223,7 +223,7 @@ def test_a_click_on_the_body_picks_a_try_on_target(session):
         px = cam.to_pixels(p[None])[0] + _iframe_origin(page, "#view3d")
         page.mouse.click(*px)
         try:
-            wait_until(lambda: ui.tryon.target is not None, 20, page)
+            wait_until(lambda: ui.tryon.target is not None and ui.view3d.body_marker.visible, 20, page)
         except TimeoutError:
             continue
         break

@@ -410,8 +410,9 @@ class CoutureUI:
 
         proxy = load_body_proxy(self.view3d.body_name, verbose=False)
         pick = pick_body(origin, direction, proxy)
-        self.tryon.set_target(pick)
+        # marker first: a reader that sees the target also sees its marker
         self.view3d.show_body_marker(None if pick is None else pick.point)
+        self.tryon.set_target(pick)
         return pick
 
     def _pick(self, mp: MaterialPoint) -> None:
