@@ -453,12 +453,13 @@ def test_single_precision_pardiso_refines_to_the_asked_tolerance():
     assert np.linalg.norm(H @ y - c) <= 1e-8 * np.linalg.norm(c)
 
 
-def test_auto_backend_is_exact_unless_approximate_is_allowed():
+def test_auto_backend_is_exact_even_where_approximate_is_allowed():
+    """single-precision PARDISO only by name: under MKL 2026.2 its factorization
+    is 5-8x slower than double's on a Newton matrix (linalg.resolve_backend)"""
     from couture.solvers.linalg import resolve_backend
 
     assert resolve_backend("auto") != "pardiso32"
-    want = "pardiso32" if "pardiso32" in available_backends() else resolve_backend("auto")
-    assert resolve_backend("auto", approximate=True) == want
+    assert resolve_backend("auto", approximate=True) == resolve_backend("auto")
     with pytest.raises(ValueError, match="unknown backend"):
         resolve_backend("umfpack")
 

@@ -108,7 +108,7 @@ class NewtonSolver:
         overrides the first for one solve);
         forcing: the direction's linear system is solved to a relative residual
         min(1e-2, forcing * r) at relative force residual r (inexact Newton; only
-        approximate backends use it: 'auto' picks single-precision PARDISO);
+        approximate backends use it: 'pardiso32', by name);
         dynamics_phases: how many times a crawl (the residual not improved by 1 % in
         ``stall_window`` iterations) hands over to damped dynamics (module docstring),
         each time until the residual is a tenth of the best or ``dynamics_until``;
