@@ -454,3 +454,40 @@ def test_own_designs_learn_the_given_generation():
     assert own.meshed("mine", 7) and own.given(1) == 7
     own.add("mine-again", 1)  # the same number asked for again: the newest design is the one waited for
     assert own.given(1) is None and own.meshed("mine-again", 9) and own.given(1) == 9
+
+
+def prolongation(coarse: GarmentMesh, fine: GarmentMesh) -> tuple[np.ndarray, np.ndarray]:
+    """Each fine vertex's coarse triangle (by its 2D rest position) and barycentrics."""
+    P = coarse.X[coarse.tris]  # (t, 3, 2)
+    parent = np.zeros(fine.n_vertices, np.int32)
+    bary = np.zeros((fine.n_vertices, 3))
+    for i, q in enumerate(fine.X):
+        T = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=-1)  # (t, 2, 2)
+        uv = np.linalg.solve(T, (q - P[:, 0])[..., None])[..., 0]
+        b = np.column_stack([1.0 - uv.sum(1), uv])
+        t = int(np.argmax(b.min(1)))
+        parent[i], bary[i] = t, b[t]
+    return parent, bary
+
+
+@pytest.mark.parametrize("extend_by", [0.0, 1e5])
+def test_a_level_that_needs_more_than_its_cap_gets_it_or_the_next_level_says_so(extend_by):
+    """A coarse level stopped by its time cap goes on (``extend_by`` caps more)
+    and says so in its diagnosis; with no extension the fine level's start names
+    the unconverged coarse drape it was prolongated from."""
+    s = SolveService(method="newton", extend_by=extend_by)
+    s.max_seconds = {"coarse": 1e-4, "fine": 60.0}
+    s.set_design(design())
+    coarse, fine = sheet("coarse", 1, 5), sheet("fine", 1, 7)
+    s.set_mesh("coarse", coarse, 1)
+    s.set_mesh("fine", fine, 1, prolongation(coarse, fine))
+    runs = s.run()
+    c, f = runs[0], runs[1]
+    assert f.result.converged
+    if extend_by:
+        assert c.result.converged and c.result.iterations > 0
+        assert "needed more than its 0.0001 s cap" in c.result.diagnosis
+        assert c.result.stats["extended"] and f.warm_start == "prolongated"
+    else:
+        assert not c.result.converged and "max_seconds" in c.result.diagnosis
+        assert f.warm_start.startswith("prolongated from an unconverged coarse drape (residual ")

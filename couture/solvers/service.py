@@ -180,6 +180,10 @@ class SolveService:
     proxy_loader: Callable[[str], object] = _load_proxy
     """body name -> its proxy (default couture.cloth.proxy.load_body_proxy,
     cached on disk per body mesh)"""
+    extend_by: float = 1.0
+    """a level below the last that ends unconverged at its cap (``max_seconds``)
+    goes on for this many caps more, from where it stopped, before the next level
+    starts from it (0: never)"""
     _proxy: tuple[str, object] | None = field(default=None, repr=False)
     """(body name, proxy) of the last drag: another body gets its own"""
 
@@ -341,6 +345,25 @@ class SolveService:
                 friction_after=math.inf if at_once else None,
                 from_placement=how == "placement",
             )
+            last_level = level == levels[-1]
+            if not (result.converged or last_level or should_abort() or stopped(result)) and self.extend_by > 0:
+                # a level below the last one that did not converge in its cap gets more
+                # time, said in its diagnosis: the next level must not start silently
+                # from an unconverged drape (a busy machine stopped the demo's first
+                # coarse skirt at residual 1.24 and the fine level took it)
+                more = self.solver.solve(
+                    lm.model,
+                    result.x,
+                    tol=self.tol[level],
+                    max_seconds=self.extend_by * self.max_seconds[level],
+                    callback=cb,
+                    friction_after=math.inf,
+                )
+                result = extended(result, more, self.max_seconds[level])
+            if how == "prolongated" and runs and not runs[-1].result.converged:
+                how = f"prolongated from an unconverged coarse drape (residual {runs[-1].result.residual:.3g})"
+                if not result.converged:
+                    result.diagnosis = f"{result.diagnosis}; started {how}"
             lm.x = result.x
             lm.converged = result.converged
             if self.tryon is not None and level in self.tryon:
@@ -435,6 +458,33 @@ class SolveService:
         if self._proxy is None or self._proxy[0] != name:
             self._proxy = (name, self.proxy_loader(name))
         return self._proxy[1]
+
+
+def stopped(result: SolveResult) -> bool:
+    """The solve was stopped from outside (a newer edit, the node closing)."""
+    return "stopped by callback" in result.diagnosis or "abort" in result.diagnosis.lower()
+
+
+def extended(first: SolveResult, more: SolveResult, cap: float) -> SolveResult:
+    """One result for a level solved in two goes: its cap, then an extension."""
+    said = f"needed more than its {cap:g} s cap (residual {first.residual:.3g} then)"
+    stats = dict(more.stats)
+    for k, v in first.stats.items():
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and isinstance(stats.get(k), (int, float)):
+            stats[k] = stats[k] + v
+    stats["extended"] = True
+    t0 = first.wall_time
+    return SolveResult(
+        x=more.x,
+        residual=more.residual,
+        iterations=first.iterations + more.iterations,
+        wall_time=first.wall_time + more.wall_time,
+        converged=more.converged,
+        method=more.method,
+        diagnosis=f"{said}; converged in the extension" if more.converged else f"{said}; {more.diagnosis}",
+        history=list(first.history) + [(t0 + t, r) for t, r in more.history],
+        stats=stats,
+    )
 
 
 def solve_tryon(state: TryOn, fabric, scene, solver="newton", **opts) -> SolveResult:
