@@ -52,9 +52,19 @@ from couture.solvers import SOLVERS
 
 TOL = 1e-4
 """relative residual the figures are timed to"""
-GOALS = {"fine_total_s": 5.0, "fine_steps_per_s": 10.0, "coarse_steps_per_s": 50.0}
+GOALS = {
+    "fine_total_s": 5.0,
+    "fine_steps_per_s": 10.0,
+    "coarse_steps_per_s": 50.0,
+    "coarse_iterations": 60,
+    "fine_iterations": 20,
+}
 """targets on the 2-core reference machine: fine drape to 1e-4 from
-scratch within 5 s, fine steps >= 10/s, coarse steps >= 50/s"""
+scratch within 5 s, fine steps >= 10/s, coarse steps >= 50/s; coarse from
+placement in <= 60 iterations, fine from its cascade start in <= 20"""
+TAIL = 4
+"""residual ratios printed for a level's last iterations (quadratic
+convergence: each ratio about the residual before it, the order near 2)"""
 SWEEP_SIZES = (2500, 5000, 10000, 20000, 40000)
 """fine-level vertex targets of the size sweep"""
 HISTORY_POINTS = 400
@@ -85,6 +95,19 @@ def with_options(design: Any, *, friction: bool | None = None, fine_vertices: in
             design, resolution=msgspec.structs.replace(design.resolution, fine_vertices=int(fine_vertices))
         )
     return design
+
+
+def convergence_tail(history: list[tuple[float, float]], k: int = TAIL) -> dict[str, Any]:
+    """The last ``k`` residual ratios r_{i+1}/r_i of a level and the order
+    estimate log(r_{i+1}/r_i) / log(r_i/r_{i-1}) of its last step (2 for
+    Newton's quadratic convergence, 1 for linear)."""
+    rs = [r for _, r in history if r > 0.0]
+    tail = rs[-k - 1 :]
+    ratios = [b / a for a, b in zip(tail, tail[1:], strict=False)]
+    order = None
+    if len(ratios) >= 2 and 0.0 < ratios[-2] != 1.0 and ratios[-1] > 0.0:
+        order = float(np.log(ratios[-1]) / np.log(ratios[-2]))
+    return {"residuals": tail, "ratios": ratios, "order": order}
 
 
 def time_to(history: list[tuple[float, float]], tol: float) -> float | None:
@@ -220,6 +243,7 @@ def drape_case(
             "linear_algebra": linear_algebra(r.stats),
             "stats": {k: _plain(v) for k, v in r.stats.items()},
             "history": _thin(r.history),
+            "tail": convergence_tail(r.history),
         }
     lv = out["levels"]
     fine = lv.get("fine")
@@ -418,6 +442,8 @@ def goals(case: dict[str, Any]) -> dict[str, bool | None]:
         else (tt["total"] is not None and tt["total"] <= GOALS["fine_total_s"]),
         "fine_steps_per_s": None if fine_sps is None else fine_sps >= GOALS["fine_steps_per_s"],
         "coarse_steps_per_s": None if coarse_sps is None else coarse_sps >= GOALS["coarse_steps_per_s"],
+        "coarse_iterations": None if "coarse" not in lv else lv["coarse"]["iterations"] <= GOALS["coarse_iterations"],
+        "fine_iterations": None if "fine" not in lv else lv["fine"]["iterations"] <= GOALS["fine_iterations"],
     }
 
 
@@ -437,13 +463,24 @@ def print_table(cases: list[dict[str, Any]]) -> None:
                 f"{_f(la.get('s_per_factorization'), '7.3f')} {_f(la.get('s_per_solve'), '8.4f')}"
                 + (f"  [{lv['diagnosis']}]" if lv["diagnosis"] else "")
             )
+            tail = lv.get("tail")
+            if tail and tail["ratios"]:
+                order = "-" if tail["order"] is None else f"{tail['order']:.2f}"
+                print(
+                    f"{'':15s} {'':8s} {'':4s} {'':6s} last residuals "
+                    + " ".join(f"{r:.1e}" for r in tail["residuals"])
+                    + ", ratios "
+                    + " ".join(f"{q:.2g}" for q in tail["ratios"])
+                    + f", order {order}"
+                )
         tt = c["time_to_tol_s"]
         g = c["goals"]
         print(
             f"{'':15s} {'':8s} {'':4s} total to 1e-4: {_f(tt['total'], '.2f')} s "
             f"(goal <= {GOALS['fine_total_s']:g} s: {g['fine_total_s']}; fine >= {GOALS['fine_steps_per_s']:g} "
             f"its/s: {g['fine_steps_per_s']}; coarse >= {GOALS['coarse_steps_per_s']:g} its/s: "
-            f"{g['coarse_steps_per_s']})"
+            f"{g['coarse_steps_per_s']}; coarse <= {GOALS['coarse_iterations']} its: {g['coarse_iterations']}; "
+            f"fine <= {GOALS['fine_iterations']} its: {g['fine_iterations']})"
         )
     sources = sorted(
         {

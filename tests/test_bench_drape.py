@@ -61,7 +61,13 @@ def test_bench_drape_writes_finite_figures_and_plots(tmp_path):
         assert all(finite(v) for k, v in la.items() if not k.endswith("_from")), la
     assert set(case["time_to_tol_s"]) == {"coarse", "fine", "total"}
     assert all(v is None or finite(v) for v in case["time_to_tol_s"].values())
-    assert set(case["goals"]) == {"fine_total_s", "fine_steps_per_s", "coarse_steps_per_s"}
+    assert set(case["goals"]) == {
+        "fine_total_s",
+        "fine_steps_per_s",
+        "coarse_steps_per_s",
+        "coarse_iterations",
+        "fine_iterations",
+    }
     sw = rep["sweep"]
     assert [r["target"] for r in sw["rows"]] == [600, 900]
     for r in sw["rows"]:
@@ -71,3 +77,17 @@ def test_bench_drape_writes_finite_figures_and_plots(tmp_path):
         assert finite(sw["fit"]["exponent"])
     assert (out / "drape_small_skirt.png").stat().st_size > 0
     assert (out / "drape_sweep.png").stat().st_size > 0
+
+
+def test_convergence_tail_reads_the_order_of_a_residual_sequence():
+    """Quadratic (r_{k+1} = r_k^2 / 10) gives order 2, linear (halving) order 1."""
+    from bench.drape import convergence_tail
+
+    quad = [1e-1]
+    for _ in range(5):
+        quad.append(quad[-1] ** 2 / 10)
+    tail = convergence_tail([(float(i), r) for i, r in enumerate(quad)])
+    assert tail["order"] == pytest.approx(2.0, rel=0.05) and len(tail["ratios"]) == 4
+    assert tail["ratios"][-1] == pytest.approx(quad[-1] / quad[-2])
+    lin = convergence_tail([(float(i), 0.5**i) for i in range(8)])
+    assert lin["order"] == pytest.approx(1.0) and all(q == pytest.approx(0.5) for q in lin["ratios"])
