@@ -46,8 +46,8 @@ def test_sc_fig5_sphere_drape_all_solvers_agree_with_newton():
     two kinetic configurations, whose equilibria differed in energy by 0.7%
     and 11%, so energies are not compared). Verlet integrates the same model
     explicitly: checked like cold Newton, its residual recomputed here (measured:
-    converged in 10.7k steps, 5.3 s; Newton polished from its drape moves it
-    0.03 mm).
+    converged in 10.7k steps, 5.3 to 7 s, centroid 1.4 % off, cold Newton's
+    1.2 %; Newton polished from its drape moves it 0.03 mm: an equilibrium).
     """
     m = cloth_sphere_drape(20)
     size = 0.6
