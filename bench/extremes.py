@@ -54,9 +54,8 @@ A stop whose garment no longer touches the body (a static solve sliding off
 it and falling, whole) is flagged ``left_body``: a diagnosed stop, counted
 apart in the summary, since its diagnosis (a cap) does not say so.
 
-Verlet solves its own mass-spring model (``couture.solvers.verlet``): its
-ClothModel residual is reported, not checked (it is not that model's
-equilibrium), and it has no friction; its contact and seam checks apply.
+Verlet (``couture.solvers.verlet``) integrates the same ClothModel's forces
+explicitly: every check applies to it as to the others.
 
 Goals (:data:`GOALS`): 0 blow-ups, 0 hangs, every stop diagnosed, >= 95 %
 converged, per solver. Writes ``DIR/extremes.json`` and the heat map
@@ -320,7 +319,7 @@ def perturbed(
 # -- checks and classification --------------------------------------------------------------------
 
 
-def checks(model, x: np.ndarray, tol: float, solver: str) -> dict[str, Any]:
+def checks(model, x: np.ndarray, tol: float) -> dict[str, Any]:
     """The independent checks of a returned state, on a fresh model built from the
     same mesh, fabric and scene (the friction anchors copied from the solver's
     model: a residual means nothing without the anchors it balances against).
@@ -334,14 +333,8 @@ def checks(model, x: np.ndarray, tol: float, solver: str) -> dict[str, Any]:
     x = np.ascontiguousarray(x, dtype=np.float64)
     out: dict[str, Any] = {}
     r = float(fresh.relative_residual(x))
-    own_model = solver == "verlet"
-    out["residual"] = {
-        "value": r,
-        "limit": tol,
-        "ok": None if own_model else bool(np.isfinite(r) and r <= tol),
-        **({"note": "verlet solves its own mass-spring model: reported, not checked"} if own_model else {}),
-    }
-    if "friction" in fresh.terms and not own_model:
+    out["residual"] = {"value": r, "limit": tol, "ok": bool(np.isfinite(r) and r <= tol)}
+    if "friction" in fresh.terms:
         excess = float(fresh.friction_excess(x))
         allowed = float(friction_allowance(fresh, x, tol))
         out["friction_cone"] = {"excess_n": excess, "allowed_n": allowed, "ok": bool(excess <= allowed)}
@@ -465,7 +458,7 @@ def run_case(
     finite = bool(np.all(np.isfinite(x)))
     start = np.where(np.isfinite(x0), x0, 0.0)
     move = float(np.max(np.linalg.norm(x - start, axis=1))) if finite and len(x) else float("inf")
-    chk = checks(model, x, float(spec["tol"]), spec["solver"]) if finite else None
+    chk = checks(model, x, float(spec["tol"])) if finite else None
     stretch = max_edge_stretch(model, x) if finite else None
     outcome = classify(
         converged=bool(res.converged),
@@ -867,8 +860,7 @@ def plot(rows: list[dict[str, Any]], path: Path, title: str = "") -> None:
     fig.text(
         0.5,
         0.005,
-        "cell: relative residual reached (verlet: the cloth-model residual at its own spring model's drape, "
-        "not checked), the stop, or the failed check",
+        "cell: relative residual reached, the stop, or the failed check",
         ha="center",
         va="bottom",
         fontsize=7,

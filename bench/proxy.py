@@ -9,12 +9,9 @@
 - Queries per 10k points (``phi_grad``), points near the body (within 5 cm
   of its surface) and in its bounding box: proxy (sphere tree), proxy with
   every leaf tried, grid SDF (B-spline).
-- Verlet contact (``--no-verlet`` skips): the default skirt (coarse) draped
-  by the Verlet solver with ``contact='sdf'``, ``contact='proxy'`` (its
-  default 5 mm blend) and the proxy's exact min (blend 0) for the same
-  number of steps: penetration of the final drape into the true body
-  (exact mesh distance), its gap to the body where it rests on it, time per
-  step and in contact queries.
+
+(Its Verlet contact comparison went with Verlet's mass-spring model: Verlet
+now integrates the ClothModel, whose contact is the body's SDF.)
 
 Writes ``proxy.json`` and ``proxy.png`` (the leaf ellipsoids over the body,
 front and side) to the results folder (``--out``, default bench/results/).
@@ -85,44 +82,6 @@ def surface_check(proxy, dist, V, F):
     }
 
 
-def verlet_contact(steps: int, dist, level="coarse"):
-    """The default skirt draped by Verlet for ``steps`` steps with each contact body."""
-    from bench.solver import skirt_models
-    from couture.solvers.verlet import VerletSolver
-
-    makers, meshes, _, _ = skirt_models(levels=(level,))
-    rows = {}
-    for contact, blend in (("sdf", 0.0), ("proxy", 0.005), ("proxy_exact_min", 0.0)):
-        model = makers[level](level)
-        solver = VerletSolver(contact=contact.split("_")[0], proxy_blend=blend)
-        solver.contact_body(model)  # load (or build) outside the timing
-        res = solver.solve(model, model.mesh.x0, tol=0.0, max_iters=steps, max_seconds=600.0)
-        d = dist(res.x)
-        free = np.asarray(model.free, bool)
-        d = d[free]
-        rest = d < model.contact_offset + 0.03  # vertices resting on (or near) the body
-        st = res.stats
-        rows[contact] = {
-            "n_vertices": int(model.n),
-            "steps": int(res.iterations),
-            "wall_s": float(res.wall_time),
-            "step_ms": 1e3 * res.wall_time / max(res.iterations, 1),
-            "contact_query_ms_per_step": 1e3 * st["contact_s"] / max(res.iterations, 1),
-            "own_residual": float(st["own_residual"]),
-            "cloth_relative_residual": float(res.residual),
-            "penetration_max_mm": 1e3 * float(max(0.0, -d.min())),
-            "vertices_inside_body": int((d < 0).sum()),
-            "vertices_within_offset": int((d < model.contact_offset - 1e-3).sum()),
-            "resting_vertices": int(rest.sum()),
-            "gap_resting_mean_mm": 1e3 * float(d[rest].mean()) if rest.any() else None,
-            "gap_resting_p90_mm": 1e3 * float(np.percentile(d[rest], 90)) if rest.any() else None,
-            "contact_offset_mm": 1e3 * float(model.contact_offset),
-            "proxy_blend_mm": 1e3 * blend if contact != "sdf" else None,
-        }
-        print(f"  verlet {contact}: {rows[contact]}", file=sys.stderr, flush=True)
-    return rows
-
-
 def plot(proxy, V, path: Path) -> None:
     import matplotlib
 
@@ -167,8 +126,6 @@ def plot(proxy, V, path: Path) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="couture bench proxy", description=__doc__.splitlines()[0])
-    ap.add_argument("--steps", type=int, default=3000, help="Verlet steps per contact body (default %(default)s)")
-    ap.add_argument("--no-verlet", action="store_true", help="skip the Verlet drape comparison")
     ap.add_argument("--rebuild", action="store_true", help="build the proxy now (timed) instead of loading the cache")
     add_out_arg(ap)
     args = ap.parse_args(argv)
@@ -206,17 +163,6 @@ def main(argv=None) -> int:
     qt = query_times(proxy, grid, V, F)
     for k, v in qt.items():
         print(f"phi_grad per 10k points, {k}: " + ", ".join(f"{a} {b:.2f}" for a, b in v.items()))
-    verlet = None
-    if not args.no_verlet:
-        print(f"Verlet, default skirt coarse, {args.steps} steps per contact body ...", file=sys.stderr, flush=True)
-        verlet = verlet_contact(args.steps, dist)
-        for k, r in verlet.items():
-            print(
-                f"verlet {k:15}: {r['step_ms']:.2f} ms/step (contact {r['contact_query_ms_per_step']:.2f}), "
-                f"penetration {r['penetration_max_mm']:.2f} mm ({r['vertices_inside_body']} inside, "
-                f"{r['vertices_within_offset']} within the offset), resting gap mean {r['gap_resting_mean_mm']:.1f} mm "
-                f"p90 {r['gap_resting_p90_mm']:.1f} mm, own residual {r['own_residual']:.3g}"
-            )
     out = write_results(
         args.out,
         "proxy",
@@ -230,7 +176,6 @@ def main(argv=None) -> int:
             "regions": regions,
             "exact_distance_check": check,
             "query_per_10k": qt,
-            "verlet": verlet,
         },
         default=float,
     )

@@ -246,7 +246,7 @@ def main(argv=None) -> int:
     if not args.quick and not args.no_cascadic and prol is not None:
         for name in solvers:
             if name not in ("kinetic", "newton"):
-                continue  # verlet: its own spring model, not converging the ClothModel residual by design
+                continue  # verlet: explicit steps, far from converging a fine level within the cascade's caps
             print(f"  {name} cascadic ...", file=sys.stderr, flush=True)
             rows.extend(run_cascadic(name, design, meshes, prol, max_seconds=3 * cap))
 

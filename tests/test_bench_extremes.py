@@ -66,13 +66,13 @@ def test_independent_checks_see_an_open_seam_and_a_vertex_inside_the_body():
 
     r = get_solver("newton").solve(model, x0, tol=1e-6, max_seconds=30)
     assert r.converged, r.diagnosis
-    c = ex.checks(model, r.x, 1e-6, "newton")
+    c = ex.checks(model, r.x, 1e-6)
     assert c["residual"]["ok"] and c["penetration"]["ok"] and c["friction_cone"]["ok"] is not None
     assert c["seams"]["ok"] is None  # no seams on the strip
     x = r.x.copy()
     free = np.nonzero(model.free)[0]
     x[free[-1]] = [0.0, 0.1, 0.0]  # 0.1 m inside the 0.2 m sphere
-    c = ex.checks(model, x, 1e-6, "newton")
+    c = ex.checks(model, x, 1e-6)
     assert c["penetration"]["ok"] is False and c["penetration"]["deepest_m"] == pytest.approx(0.11)
     assert c["residual"]["ok"] is False
     assert ex.max_edge_stretch(model, r.x) < 1.5  # whole
@@ -100,7 +100,7 @@ def test_skirt_seam_check_measures_the_gap():
     d = Design(scene=SceneFlags(body=False, friction=False))
     model = ClothModel(mesh, d.fabric, scene_from_design(d))
     x = np.array([[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0.05, 0.05, 0.004]])
-    c = ex.checks(model, x, 1e-4, "newton")
+    c = ex.checks(model, x, 1e-4)
     assert c["seams"]["max_gap_m"] == pytest.approx(0.004) and c["seams"]["ok"] is False
     assert c["seams"]["worst_emitter"] == 3 and c["penetration"]["ok"] is None
 

@@ -11,7 +11,7 @@ from fdcheck import along_axes, assert_close
 from scipy.optimize import brentq
 
 from couture.cloth import proxy_kernels as PK
-from couture.cloth.body import SphereBody, TriangleMeshDistance, load_mannequin_mesh, load_mannequin_sdf
+from couture.cloth.body import TriangleMeshDistance, load_mannequin_mesh, load_mannequin_sdf
 from couture.cloth.proxy import (
     ComponentRegions,
     Ellipsoid,
@@ -271,26 +271,6 @@ def test_picking_rays_and_nearest_points(mannequin):
     assert np.allclose(np.linalg.norm(dvec, axis=1), proxy.phi_grad(P[out])[0])
     with pytest.raises(ValueError, match="directions"):
         proxy.raycast(eye, [0.0, 0.0, 0.0])
-
-
-def test_verlet_contact_option():
-    from couture.solvers import get_solver
-    from couture.solvers.verlet import VerletSolver
-
-    with pytest.raises(ValueError, match="contact"):
-        VerletSolver(contact="mesh")
-
-    class Model:  # only what contact_body reads
-        pass
-
-    m = Model()
-    m.body = SphereBody(center=np.zeros(3), radius=0.1)
-    m.scene = type("S", (), {"body": m.body})()
-    assert get_solver("verlet", contact="proxy").contact_body(m) is m.body  # not the mannequin: as it is
-    m.scene.body = "mannequin"
-    body = get_solver("verlet", contact="proxy").contact_body(m)
-    assert isinstance(body, EllipsoidProxyBody) and body.blend == 0.005  # creases rounded for contact
-    assert get_solver("verlet").contact_body(m) is m.body
 
 
 def test_a_graded_bodys_proxy_meets_every_threshold():

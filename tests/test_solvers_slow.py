@@ -44,11 +44,10 @@ def test_sc_fig5_sphere_drape_all_solvers_agree_with_newton():
     step control: cold Newton is checked on its residual and on the centroid
     (within 2% of the size; measured 0.2% and 0.7% against references from
     two kinetic configurations, whose equilibria differed in energy by 0.7%
-    and 11%, so energies are not compared). Verlet solves its own spring
-    model (inextensible edges, quartic spring bending): centroid and lowest
-    point within 10% of the size (measured 3.7-4.4% and 4.2-5.9%; re-run when
-    this scene was fixed: the earlier 0.25 bound on max distance had never
-    been run, and in that scene the cloth slid off the sphere).
+    and 11%, so energies are not compared). Verlet integrates the same model
+    explicitly: checked like cold Newton, its residual recomputed here (measured:
+    converged in 10.7k steps, 5.3 to 7 s, centroid 1.4 % off, cold Newton's
+    1.2 %; Newton polished from its drape moves it 0.03 mm: an equilibrium).
     """
     m = cloth_sphere_drape(20)
     size = 0.6
@@ -57,21 +56,21 @@ def test_sc_fig5_sphere_drape_all_solvers_agree_with_newton():
     ref = get_solver("newton").solve(m, kin.x, tol=1e-9, max_iters=500)
     assert ref.converged and ref.residual < 1e-8, ref.diagnosis
     newton_cold = get_solver("newton").solve(m, m.mesh.x0, tol=1e-8, max_iters=2000, max_seconds=60)
-    ver = get_solver("verlet").solve(m, m.mesh.x0, tol=1e-4)
+    ver = get_solver("verlet").solve(m, m.mesh.x0, tol=1e-4, max_seconds=60)
     assert ver.converged, ver.diagnosis
+    assert m.relative_residual(ver.x) <= 1e-4
     d_kin = np.linalg.norm(kin.x - ref.x, axis=1).max() / size
 
     def centroid(x):
         return np.linalg.norm(x.mean(axis=0) - ref.x.mean(axis=0)) / size
 
-    low_ver = abs(ver.x[:, 1].min() - ref.x[:, 1].min()) / size
     print(
-        f"kinetic {d_kin:.2e}; verlet centroid {centroid(ver.x):.2e} lowest {low_ver:.2e}; "
+        f"kinetic {d_kin:.2e}; verlet centroid {centroid(ver.x):.2e} ({ver.iterations} steps, {ver.wall_time:.1f} s); "
         f"cold newton {newton_cold.converged} {newton_cold.residual:.2e} centroid {centroid(newton_cold.x):.2e} "
         f"energy {m.energy(newton_cold.x) / m.energy(ref.x) - 1:+.2e}"
     )
     assert d_kin < 1e-4
-    assert centroid(ver.x) < 0.1 and low_ver < 0.1
+    assert centroid(ver.x) < 0.02
     assert newton_cold.converged, newton_cold.diagnosis
     assert centroid(newton_cold.x) < 0.02
     # every drape touches the sphere and stays outside it (contact offset 1 cm, penalty)

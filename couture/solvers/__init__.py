@@ -6,7 +6,8 @@
 - ``kinetic``: kinetic damping on Baraff-Witkin semi-implicit steps (SC §7) with an adaptive
   time step, CG preconditioned by a reused sparse factorization (or IC(0)).
 - ``newton``: Newton + Armijo line search, sparse direct factorization (accuracy reference).
-- ``verlet``: Meng 2010 style mass-spring with Stoermer-Verlet (speed end; its own spring model).
+- ``verlet``: explicit Stoermer-Verlet dynamic relaxation of the same ClothModel (FIRE damping,
+  fictitious masses): no linear solves; slow to converge on stiff garments.
 - ``style3d``: the peer, NVIDIA newton's SolverStyle3D (optional extra ``couture[peer]``; its own model).
 
 ``SOLVERS`` is the only list of solver names: the CLI's choices, the solver

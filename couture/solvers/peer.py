@@ -4,7 +4,7 @@ Optional: needs the ``couture[peer]`` extra (``newton``, which pulls ``warp-lang
 it runs on the CPU through warp (device ``"cpu"``, float32). Without it
 ``get_solver("style3d")`` raises a clear error.
 
-It is a model of its own, like :mod:`couture.solvers.verlet`, built from the same
+It is a model of its own (the only solver here that is), built from the same
 :class:`couture.mesh.GarmentMesh`, fabric and scene as the ClothModel:
 
 - geometry: 3D placement ``x0`` (the start state) and the 2D panel rest positions
@@ -45,10 +45,10 @@ see that as a residual. Self-collision is Style3D's own (on, as users run it).
 
 Quasi-static solve: implicit (projective-dynamics) steps of ``dt`` with
 ``iterations`` nonlinear x ``linear_iterations`` PCG iterations each, plus
-kinetic damping (velocities zeroed at kinetic-energy peaks, as the Verlet
+kinetic damping (velocities zeroed at kinetic-energy peaks, as the kinetic
 solver does). Own stopping measure ("own residual"): ``||M v|| / (dt ||F_gravity||)``,
 the unbalanced force a step leaves over the gravity force; it stops when that is
-<= ``tol`` (or at the step / time caps). Like Verlet it converges to its own
+<= ``tol`` (or at the step / time caps). It converges to its own
 model's equilibrium: the result carries OUR ClothModel's relative residual at
 that point (``model.relative_residual``) so accuracy is comparable;
 ``stats['own_residual']`` is the peer's measure. ``wall_time`` includes building
