@@ -308,6 +308,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     im.add_argument("--exclude", nargs="+", default=[], metavar="PIECE", help="pieces to leave out (e.g. waistband)")
     im.add_argument(
+        "--stretch-stiffness",
+        type=float,
+        default=200.0,
+        metavar="N_PER_M",
+        help="[N/m] the fabric's in-plane stiffness (default 200: a woven; couture's default cotton is 20)",
+    )
+    im.add_argument(
         "--min-confidence",
         type=float,
         default=0.5,
@@ -464,6 +471,7 @@ def import_pattern(args: argparse.Namespace) -> int:
             landmark=args.landmark,
             exclude=tuple(args.exclude),
             min_confidence=args.min_confidence,
+            stretch_stiffness=args.stretch_stiffness,
         )
         try:
             validate(design)

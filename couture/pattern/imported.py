@@ -123,17 +123,15 @@ def check_piece(P: np.ndarray, source: str, name: str, units_hint: str = "") -> 
             f"piece is {size * 1000:.4g} mm across, outside {MIN_PIECE * 1000:g} mm .. {MAX_PIECE:g} m: "
             f"wrong units? {units_hint or 'give --units mm|cm|in'}",
         )
-    if abs(signed_area(P)) < 1e-8:
-        raise ImportError_(source, name, "outline has no area")
-    if signed_area(P) < 0:
-        P = P[::-1].copy()
     hits = self_intersections(P)
     if hits:
         i, j = hits[0]
         raise ImportError_(
             source, name, f"outline self-intersects (edges {i} and {j}, near ({P[i][0]:.3f}, {P[i][1]:.3f}) m)"
         )
-    return P
+    if abs(signed_area(P)) < 1e-8:
+        raise ImportError_(source, name, "outline has no area")
+    return P if signed_area(P) > 0 else P[::-1].copy()
 
 
 def _decimate(P: np.ndarray, d: float = 3e-4) -> np.ndarray:
@@ -315,7 +313,7 @@ def read_dxf(
             name = f"{name}_{names[name]}"
         el = name
         inner_sews = [p for p in sews if p is not outer and inside(p, outer)]
-        if outer.layer == "14":
+        if outer.layer != "1":  # a sew line (layer 14, or any closed line in a file without AAMA layers)
             sew_lines = [outer] + inner_sews
         else:
             sew_lines = inner_sews
@@ -479,7 +477,12 @@ def read_svg(path: str | Path, units: str | None = None, source: str | None = No
                     except Exception:  # noqa: BLE001  # a use without geometry
                         pass
             elif isinstance(e, (SvgPath, Shape)) and not isinstance(e, Circle):
-                P = _flatten(SvgPath(e) if not isinstance(e, SvgPath) else e)
+                try:
+                    P = _flatten(SvgPath(e) if not isinstance(e, SvgPath) else e)
+                except Exception as err:  # noqa: BLE001  # svgelements fails on malformed path data in many ways
+                    raise ImportError_(
+                        src, key or "", f"path {e.id or ''} cannot be read: {type(err).__name__}: {err}"
+                    ) from None
                 if len(P) < 2:
                     continue
                 if "sa" in cls or "help" in cls or "hidden" in cls or "cut" in cls or "cutout" in cls:

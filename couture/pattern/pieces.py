@@ -90,5 +90,6 @@ def piece_rings(design: Design, body: str = "default") -> list[Ring]:
             np.array([0.0, first.height, M.TORSO_AXIS_Z]),
             section="torso",
             landmark="waist",
+            top_rows_as_full=True,
         )
     ]

@@ -35,7 +35,7 @@ from couture.pattern import mannequin as M
 from couture.pattern.errors import PatternError
 from couture.pattern.geometry import polyline_length, signed_area
 from couture.pattern.imported import ImportedPiece
-from schemas.design import Body, Design, Piece, PiecePlacement, Sloper, Stroke
+from schemas.design import Body, Design, Fabric, Piece, PiecePlacement, Sloper, Stroke
 
 SPACING = 0.01
 """[m] target spacing of the resampled sew line (the sloper drafts at the same)"""
@@ -48,6 +48,11 @@ MIN_SEAM = 0.03
 """[m] segments shorter than this are not suggested as seams (vent corners, notches)"""
 DART_ANGLE = math.radians(45)
 """two consecutive legs meeting at less than this are a dart"""
+WOVEN_STRETCH_STIFFNESS = 200.0
+"""[N/m] the fabric an imported design starts with: patterns from other tools are
+mostly drafted for woven cloth; couture's default cotton (20 N/m) is so stretchy
+that a fitted pencil skirt's waist (FreeSewing penelope) stretches over the hips
+and the skirt falls to the floor (measured: 58 cm drop at 20 N/m, 5 cm at 200)"""
 ROLE_WORDS = ("waistband", "sleeve", "collar", "cuff", "yoke", "facing", "pocket", "binding", "front", "back", "side")
 
 
@@ -445,6 +450,7 @@ def build_design(
     landmark: str | None = None,
     exclude: tuple[str, ...] = (),
     min_confidence: float = 0.5,
+    stretch_stiffness: float = WOVEN_STRETCH_STIFFNESS,
 ) -> tuple[Design, ImportReport]:
     """A design of the imported pieces: free-form pieces, the suggested seams
     at or above ``min_confidence`` as seam strokes, the torso ring in seam
@@ -509,7 +515,13 @@ def build_design(
         )
         for s in seams
     ]
-    design = Design(sloper=Sloper(kind="none"), strokes=strokes, pieces=out_pieces, body=Body(name=body))
+    design = Design(
+        sloper=Sloper(kind="none"),
+        strokes=strokes,
+        pieces=out_pieces,
+        body=Body(name=body),
+        fabric=Fabric(name="woven", stretch_stiffness=stretch_stiffness),
+    )
     report = ImportReport(
         panels=[p.name for p in panels], seams=seams, free=free_edges(panels, seams), order=order, landmark=lm
     )
