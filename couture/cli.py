@@ -484,6 +484,8 @@ def import_pattern(args: argparse.Namespace) -> int:
     print(f"{args.file}: {len(pieces)} pieces -> {len(rep.panels)} panels: {', '.join(rep.panels)}")
     if body_note:
         print(f"body: {body_note}")
+    for note in rep.notes:
+        print(f"note: {note}")
     print(f"placement: round the torso from the front: {' -> '.join(rep.order) or '-'}; tops at the {rep.landmark}")
     print(f"seams suggested ({len(rep.seams)}, sewn at confidence >= {args.min_confidence:g}):")
     for sm in rep.seams:

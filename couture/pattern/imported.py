@@ -89,9 +89,10 @@ class ImportedPiece:
     on_fold: bool = False
     """the piece is a half, cut on the fold (FreeSewing 'onFold'): mirror about its fold edge"""
     texts: list[str] = field(default_factory=list)
-    center_at_min_x: bool = True
+    center_at_min_x: bool | None = True
     """the piece's centre (front/back) edge is its left one as drawn (FreeSewing parts are
-    drafted with the centre at x = 0, to the left)"""
+    drafted with the centre at x = 0, to the left); None: unknown (a DXF), the side with
+    the longer straight vertical edge"""
 
 
 # ------------------------------------------------------------------ shared checks
@@ -372,7 +373,7 @@ def read_dxf(
                 mirrored=mirrored,
                 on_fold=fold,
                 texts=tx,
-                center_at_min_x=False,
+                center_at_min_x=None,
             )
         )
     return pieces

@@ -165,6 +165,34 @@ def resample(P: np.ndarray, corners: list[int], spacing: float = SPACING) -> tup
     return np.vstack(out), new_corners
 
 
+def _straight_run(P: np.ndarray, at_min_x: bool) -> float:
+    """[m] vertical extent of the longest run of outline vertices on the
+    outline's min x (or max x) line, to 0.1 mm (0 when there is none)."""
+    x0 = P[:, 0].min() if at_min_x else P[:, 0].max()
+    on = np.abs(P[:, 0] - x0) < 1e-4
+    k = len(P)
+    best, i = 0.0, 0
+    while i < 2 * k:
+        if on[i % k]:
+            j = i
+            while j + 1 < i + k and on[(j + 1) % k]:
+                j += 1
+            ys = P[(np.arange(i, j + 1)) % k, 1]
+            best = max(best, float(np.ptp(ys)))
+            i = j + 1
+        else:
+            i += 1
+    return best
+
+
+def centre_at_min_x(pc: ImportedPiece) -> bool:
+    """Whether the piece's centre (fold, centre front/back) edge is its left
+    one: as the file says, else the side with the longer straight vertical edge."""
+    if pc.center_at_min_x is not None:
+        return pc.center_at_min_x
+    return _straight_run(pc.sew, True) >= _straight_run(pc.sew, False)
+
+
 def _unfold(P: np.ndarray, at_min_x: bool) -> np.ndarray | None:
     """A half cut on the fold, mirrored about its fold edge: the vertical
     straight run at its min x (``at_min_x``) or max x; None when there is none."""
@@ -212,7 +240,7 @@ def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Pa
     out: list[_Panel] = []
     for pc in pieces:
         P = pc.sew
-        center_min = pc.center_at_min_x
+        center_min = centre_at_min_x(pc)
         if pc.on_fold:
             band = np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and role_of(pc.name) in ("waistband", "binding", "")
             W = None
@@ -443,6 +471,44 @@ class ImportReport:
     notes: list[str] = field(default_factory=list)
 
 
+HALF_GIRTH = 0.6
+"""torso pieces whose widths add up to less than this fraction of the body's hip
+girth are halves cut on the fold that the file does not mark (Valentina's DXF)"""
+_NOT_TORSO = ("sleeve", "waistband", "collar", "cuff", "binding", "pocket", "facing")
+
+
+def _halves_unfolded(pieces: list[ImportedPiece], body: str, notes: list[str]) -> list[ImportedPiece]:
+    """The pieces, with the torso pieces marked 'cut on the fold' when they are
+    too narrow together to go round the body (``HALF_GIRTH``) and each has a
+    straight vertical edge to unfold about."""
+    from dataclasses import replace
+
+    from couture.bodies import measured
+
+    torso = [p for p in pieces if role_of(p.name) not in _NOT_TORSO]
+    if not torso:
+        return pieces
+    girth = sum(
+        float(np.ptp(p.sew[:, 0])) * (2 if p.on_fold else 1) * (2 if p.mirrored and p.cut_count >= 2 else 1)
+        for p in torso
+    )
+    hip = float(measured(body)["hip_girth"])
+    if girth >= HALF_GIRTH * hip:
+        return pieces
+    candidates = [p for p in torso if not p.on_fold and not p.mirrored]
+    if not candidates or any(
+        max(_straight_run(p.sew, True), _straight_run(p.sew, False)) < 0.5 * np.ptp(p.sew[:, 1]) for p in candidates
+    ):
+        return pieces
+    notes.append(
+        f"the torso pieces add up to {girth * 100:.0f} cm round, less than {HALF_GIRTH:g} of the body's hip "
+        f"({hip * 100:.0f} cm): read as halves cut on the fold ({', '.join(p.name for p in candidates)}), "
+        "each unfolded about its straight centre edge"
+    )
+    ids = {id(p) for p in candidates}
+    return [replace(p, on_fold=True) if id(p) in ids else p for p in pieces]
+
+
 def build_design(
     pieces: list[ImportedPiece],
     *,
@@ -463,6 +529,8 @@ def build_design(
     kept = [p for p in pieces if p.name not in exclude]
     if not kept:
         raise PatternError("pieces", f"no pieces left to import (all of {[p.name for p in pieces]} excluded)")
+    notes: list[str] = []
+    kept = _halves_unfolded(kept, body, notes)
     panels = panels_of(kept)
     seams = [s for s in suggest_seams(panels) if s.confidence >= min_confidence]
     order = ring_order(panels, seams)
@@ -523,7 +591,12 @@ def build_design(
         fabric=Fabric(name="woven", stretch_stiffness=stretch_stiffness),
     )
     report = ImportReport(
-        panels=[p.name for p in panels], seams=seams, free=free_edges(panels, seams), order=order, landmark=lm
+        panels=[p.name for p in panels],
+        seams=seams,
+        free=free_edges(panels, seams),
+        order=order,
+        landmark=lm,
+        notes=notes,
     )
     return design, report
 
