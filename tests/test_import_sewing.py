@@ -181,3 +181,29 @@ def test_a_pattern_message_carries_the_pieces():
     again = decode(encode(msg), PatternMsg)
     assert again.design == design
     assert len(again.design.pieces) == 5
+
+
+@pytest.mark.parametrize(
+    "file",
+    [
+        "freesewing/titan_cisMaleAdult46.svg",
+        "freesewing/teagan_cisFemaleAdult42.svg",
+        "freesewing/penelope_cisFemaleAdult42.svg",
+        "valentina/TShirt_test_aama.dxf",
+    ],
+)
+def test_every_fixture_gives_a_design_file(file):
+    """Each fixture imports to a design that validates and encodes (plain
+    numbers only: a numpy float once broke the file writer)."""
+    design, rep = build_design(read_pattern(FS.parent / file))
+    validate(design)
+    assert design_from_json(design_to_json(design)) == design
+    for s in rep.seams:
+        assert type(s.confidence) is float and 0.0 <= s.confidence <= 1.0
+
+
+def test_sleeves_close_into_tubes_not_onto_each_other():
+    design, rep = build_design(read_pattern(FS / "teagan_cisFemaleAdult34.svg"))
+    sleeve = [s for s in rep.seams if "sleeve" in s.a_panel or "sleeve" in s.b_panel]
+    assert len(sleeve) == 2
+    assert all(s.a_panel == s.b_panel and "tube" in s.reason for s in sleeve)

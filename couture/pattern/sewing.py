@@ -53,6 +53,8 @@ WOVEN_STRETCH_STIFFNESS = 200.0
 mostly drafted for woven cloth; couture's default cotton (20 N/m) is so stretchy
 that a fitted pencil skirt's waist (FreeSewing penelope) stretches over the hips
 and the skirt falls to the floor (measured: 58 cm drop at 20 N/m, 5 cm at 200)"""
+TUBE_ROLES = ("sleeve", "cuff")
+"""pieces sewn into a tube by their own two long sides"""
 ROLE_WORDS = ("waistband", "sleeve", "collar", "cuff", "yoke", "facing", "pocket", "binding", "front", "back", "side")
 
 
@@ -316,7 +318,7 @@ def _segments(p: _Panel) -> list[_Seg]:
             ("right" if nrm[0] > 0 else "left") if abs(nrm[0]) >= abs(nrm[1]) else ("top" if nrm[1] > 0 else "bottom")
         )
         dist = np.array([np.min(np.linalg.norm(Q - q, axis=1)) for q in p.notches]) if len(p.notches) else np.zeros(0)
-        out.append(_Seg(p.name, f"e{i}", Q, polyline_length(Q), facing, int((dist < 0.003).sum())))
+        out.append(_Seg(p.name, f"e{i}", Q, float(polyline_length(Q)), facing, int((dist < 0.003).sum())))
     return out
 
 
@@ -356,14 +358,20 @@ def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> 
             apex_inside = bool(point_in_polygon((a.pts[-1] + 0.1 * (a.pts[-1] - mouth))[None], p.outline)[0])
             if ang < DART_ANGLE and apex_inside:
                 conf = 0.9 * (1 - abs(a.length - b.length) / max(0.003, 0.05 * a.length)) + 0.1
-                out.append(Suggestion(p.name, a.name, p.name, b.name, round(conf, 3), "dart legs", a.length, b.length))
+                out.append(
+                    Suggestion(p.name, a.name, p.name, b.name, round(float(conf), 3), "dart legs", a.length, b.length)
+                )
                 used.update({(a.panel, a.name), (b.panel, b.name)})
-    # side seams: a right-facing segment with a left-facing one of another panel
+    # side seams: a right-facing segment with a left-facing one of another panel (or, for a
+    # sleeve, cuff or band, of the same panel: its underarm seam closes it into a tube)
     cands = []
     for pa in panels:
         for pb in panels:
-            if pa.name == pb.name:
+            tube = pa.role in TUBE_ROLES
+            if pa.name == pb.name and not tube:
                 continue
+            if pa.name != pb.name and tube and pb.role in TUBE_ROLES and by[pa.name].twin == pb.name:
+                continue  # a left and a right sleeve are on opposite arms
             for a in segs[pa.name]:
                 if a.facing != "right" or a.length < MIN_SEAM or (a.panel, a.name) in used:
                     continue
@@ -389,6 +397,9 @@ def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> 
                     elif {by[pa.name].role, by[pb.name].role} == {"front", "back"}:
                         conf += 0.3
                         reasons.append("front and back")
+                    elif pa.name == pb.name:
+                        conf += 0.3
+                        reasons.append(f"closes the {pa.role} into a tube")
                     elif by[pa.name].role and by[pa.name].role == by[pb.name].role:
                         conf += 0.1
                     cands.append((conf, a, b, ", ".join(reasons)))
@@ -396,7 +407,9 @@ def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> 
     for conf, a, b, why in cands:
         if (a.panel, a.name) in used or (b.panel, b.name) in used:
             continue
-        out.append(Suggestion(a.panel, a.name, b.panel, b.name, round(min(conf, 1.0), 3), why, a.length, b.length))
+        out.append(
+            Suggestion(a.panel, a.name, b.panel, b.name, round(float(min(conf, 1.0)), 3), why, a.length, b.length)
+        )
         used.update({(a.panel, a.name), (b.panel, b.name)})
     return out
 
@@ -473,7 +486,8 @@ class ImportReport:
 
 HALF_GIRTH = 0.6
 """torso pieces whose widths add up to less than this fraction of the body's hip
-girth are halves cut on the fold that the file does not mark (Valentina's DXF)"""
+girth (and at least half of that) are halves cut on the fold that the file does
+not mark (Valentina's DXF)"""
 _NOT_TORSO = ("sleeve", "waistband", "collar", "cuff", "binding", "pocket", "facing")
 
 
@@ -493,8 +507,8 @@ def _halves_unfolded(pieces: list[ImportedPiece], body: str, notes: list[str]) -
         for p in torso
     )
     hip = float(measured(body)["hip_girth"])
-    if girth >= HALF_GIRTH * hip:
-        return pieces
+    if not (0.5 * HALF_GIRTH * hip <= girth < HALF_GIRTH * hip):
+        return pieces  # whole garment pieces, or too little for half a garment (a collar, a test swatch)
     candidates = [p for p in torso if not p.on_fold and not p.mirrored]
     if not candidates or any(
         max(_straight_run(p.sew, True), _straight_run(p.sew, False)) < 0.5 * np.ptp(p.sew[:, 1]) for p in candidates
@@ -547,7 +561,7 @@ def build_design(
     angle0 = 0.0
     if order and by[order[0]].side:
         w = [np.ptp(by[n].outline[:, 0]) for n in order]
-        angle0 = math.pi * w[0] / max(sum(w), 1e-9)
+        angle0 = float(math.pi * w[0] / max(sum(w), 1e-9))
     out_pieces = []
     for p in panels:
         ringed = p.name in pos
