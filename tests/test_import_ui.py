@@ -1,7 +1,6 @@
 """An imported design in the UI (headless viser): it adopts the design, shows
 the pieces, and the seam tool sews two of their segments into a design the
-pattern model drafts (the sloper sliders still show the last sloper's options:
-a design of free-form pieces has none, not yet reflected in the controls)."""
+pattern model drafts; the sloper's sliders go (a design of pieces has no options)."""
 
 from __future__ import annotations
 
@@ -25,6 +24,7 @@ def test_ui_shows_and_sews_imported_pieces(tmp_path):
         pat = draft(design)
         ui.show_pattern(pat)
         assert ui.design is design
+        assert ui.controls.params == {}  # no sloper options: the last sloper's sliders are gone
         got = []
         ui.on_design_changed = got.append
         a, b = pat.panels[1], pat.panels[2]
