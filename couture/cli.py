@@ -266,6 +266,62 @@ def _parser() -> argparse.ArgumentParser:
     ex.add_argument("--sheet-width", type=float, default=1.2, metavar="M", help="[m] rows of pieces on the sheet (1.2)")
     ex.add_argument("--name", default=None, help="design name on the labels and files (default: the file's stem)")
     ex.add_argument("--size", default=None, help="size on the labels (default: the sloper's girths, e.g. B88 W70)")
+    im = sub.add_parser(
+        "import",
+        help="pieces from other pattern tools (AAMA/ASTM DXF, FreeSewing SVG) -> a design to drape",
+        description="Read the pattern pieces of a DXF (AAMA/ASTM: Gerber, Lectra, Optitex, CLO,\n"
+        "Seamly2D/Valentina, couture export) or a FreeSewing SVG, unfold pieces cut on the fold,\n"
+        "double 'cut 2' pieces into a left and a right, suggest seams (printed with a confidence;\n"
+        "an unpaired edge is a free edge), place the pieces round the body and write a design\n"
+        "that `couture drape` drapes. Nothing is written when the file cannot be imported.",
+        epilog="exit status:\n  0  design written\n  2  bad command line\n"
+        "  4  the file cannot be imported (file, piece and problem printed); nothing written",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    im.add_argument("file", help="DXF or SVG pattern file (told apart by content)")
+    im.add_argument("--out", required=True, help="design JSON to write (couture/design/v1)")
+    im.add_argument(
+        "--units",
+        default=None,
+        choices=["mm", "cm", "in", "m"],
+        help="file units where the file does not say (DXF without $INSUNITS: default detected from the piece sizes)",
+    )
+    im.add_argument(
+        "--body",
+        default=None,
+        metavar="MEASUREMENTS.json",
+        help="the measurement set the pattern was drafted for (FreeSewing names, mm: chest, waist, seat/hips, "
+        "height): the design takes the nearest shipped body",
+    )
+    im.add_argument(
+        "--seam-allowance",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help="[m] a DXF piece with a cut line and no sew line (layer 14) is sewn this far inside it (default 0)",
+    )
+    im.add_argument(
+        "--landmark",
+        default=None,
+        choices=["waist", "shoulder"],
+        help="where the pieces' tops go (default: shoulder for a top with sleeves/collar, else waist)",
+    )
+    im.add_argument("--exclude", nargs="+", default=[], metavar="PIECE", help="pieces to leave out (e.g. waistband)")
+    im.add_argument(
+        "--stretch-stiffness",
+        type=float,
+        default=200.0,
+        metavar="N_PER_M",
+        help="[N/m] the fabric's in-plane stiffness (default 200: a woven; couture's default cotton is 20)",
+    )
+    im.add_argument(
+        "--min-confidence",
+        type=float,
+        default=0.5,
+        metavar="C",
+        help="suggested seams below this confidence are listed but not sewn (default 0.5)",
+    )
+
     ad = sub.add_parser(
         "adjust",
         help="direct 3D edit of a draped design (hem, waist) and its physics-adjusted pattern (Bartle 2016)",
@@ -383,6 +439,67 @@ def _parser() -> argparse.ArgumentParser:
     bp.add_argument("which", choices=benches() or None, help="the benchmark (a module of bench/)")
     bp.add_argument("args", nargs=argparse.REMAINDER, help="passed to the benchmark, e.g. --out DIR")
     return p
+
+
+IMPORT_BAD_FILE = 4
+"""exit status of ``couture import`` for a file that cannot be imported"""
+
+
+def import_pattern(args: argparse.Namespace) -> int:
+    """``couture import``: a DXF/SVG pattern's pieces -> a design file (see its --help)."""
+    import msgspec
+
+    from couture.pattern.errors import PatternError
+    from couture.pattern.imported import read_pattern
+    from couture.pattern.io import design_to_json
+    from couture.pattern.sewing import body_for_measurements, build_design
+    from couture.pattern.validate import validate
+
+    out = Path(args.out)
+    try:
+        body, body_note = "default", ""
+        if args.body:
+            try:
+                meas = json.loads(Path(args.body).read_text())
+            except (OSError, ValueError) as e:
+                raise PatternError(args.body, f"not a measurement set (JSON): {e}") from None
+            body, body_note = body_for_measurements(meas, args.body)
+        pieces = read_pattern(args.file, units=args.units, seam_allowance=args.seam_allowance)
+        design, rep = build_design(
+            pieces,
+            body=body,
+            landmark=args.landmark,
+            exclude=tuple(args.exclude),
+            min_confidence=args.min_confidence,
+            stretch_stiffness=args.stretch_stiffness,
+        )
+        try:
+            validate(design)
+        except PatternError as e:
+            raise PatternError(f"{args.file}:{e.element}", str(e).split(": ", 1)[-1]) from None
+        data = design_to_json(design)
+    except PatternError as e:
+        print(f"couture import: {e}", file=sys.stderr)
+        return IMPORT_BAD_FILE
+    print(f"{args.file}: {len(pieces)} pieces -> {len(rep.panels)} panels: {', '.join(rep.panels)}")
+    if body_note:
+        print(f"body: {body_note}")
+    for note in rep.notes:
+        print(f"note: {note}")
+    print(f"placement: round the torso from the front: {' -> '.join(rep.order) or '-'}; tops at the {rep.landmark}")
+    print(f"seams suggested ({len(rep.seams)}, sewn at confidence >= {args.min_confidence:g}):")
+    for sm in rep.seams:
+        print(
+            f"  {sm.a_panel}:{sm.a_segment} ({sm.a_length * 100:.1f} cm) + {sm.b_panel}:{sm.b_segment} "
+            f"({sm.b_length * 100:.1f} cm)  confidence {sm.confidence:.2f}  {sm.reason}"
+        )
+    print(f"free edges ({len(rep.free)}): " + ", ".join(f"{p}:{g} {ln * 100:.1f} cm" for p, g, ln in rep.free))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_bytes(data)
+    tmp.replace(out)  # whole or not at all
+    print(f"wrote {out} ({msgspec.json.decode(data)['schema']})")
+    return 0
 
 
 def bodies_command(args: argparse.Namespace) -> int:
@@ -524,6 +641,8 @@ def _dispatch(args: argparse.Namespace) -> int:
 
     if args.cmd == "export":
         return export_pattern(args)
+    if args.cmd == "import":
+        return import_pattern(args)
     if args.cmd == "adjust":
         return adjust(args)
     if args.cmd == "bodies":

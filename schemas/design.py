@@ -45,7 +45,8 @@ class Sloper(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     default/min/max/unit is data in couture.pattern)."""
 
     kind: str = "skirt"
-    """'skirt', 'dress', 'shirt', 'trousers'"""
+    """'skirt', 'dress', 'shirt', 'trousers', ... (``couture.pattern.SLOPERS``), or
+    'none': no sloper (a design of free-form ``pieces`` only)"""
     params: dict[str, float] = {}
     """option name -> value in the option's unit (SI: metres, radians, counts)"""
 
@@ -98,8 +99,55 @@ class Resolution(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     fine_vertices: int = 10000
 
 
+class PiecePlacement(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """Where a free-form piece starts around the body (the solver sews it from
+    there): pieces of one ring are wrapped round one axis in ``position``
+    order, tiling the body's section there (``couture.pattern.placement.fit_ring``)."""
+
+    ring: Literal["torso", "flat"] = "torso"
+    """'torso': round the torso, theta = 0 at the front; 'flat': laid flat in
+    front of the body (not wrapped: a piece the importer could not place)"""
+    position: int = 0
+    """order round the ring, by increasing theta (front, the body's left side,
+    back, its right side)"""
+    angle: float = 0.0
+    """[rad] centre angle of the ring's first piece (theta = 0 is the front,
+    pi/2 the body's left); read from the ring's first piece only"""
+    height: float = 0.27
+    """[m] world height (y) of material y = 0 (each piece's top); read from
+    the ring's first piece only"""
+
+
+class Piece(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
+    """A free-form panel: a pattern piece given by its sew line (an imported
+    piece, ``couture import``), not drafted from a sloper. Its boundary
+    segments are the runs between consecutive ``corners``, named ``e0``,
+    ``e1``, ...; seams between them are ``seam`` strokes."""
+
+    name: str
+    """panel name, unique in the design"""
+    outline: list[tuple[float, float]]
+    """[m] sew line, counter-clockwise, not closed, shape (k, 2); material y up"""
+    holes: list[list[tuple[float, float]]] = []
+    """[m] sew lines of holes, each clockwise, shape (h, 2)"""
+    corners: list[int] = []
+    """outline indices where segments start, increasing; segment ``e<i>`` runs
+    from ``corners[i]`` to ``corners[i + 1]`` (the last wraps to ``corners[0]``);
+    empty: one segment ``e0`` round the whole outline"""
+    notches: list[tuple[float, float]] = []
+    """[m] notch positions on the sew line, shape (n, 2)"""
+    grain: float = 0.0
+    """[rad] grain direction from material +y, counter-clockwise"""
+    role: str = ""
+    """'front', 'back', 'side', 'sleeve', 'waistband', 'collar', 'cuff', ... ('' unknown)"""
+    source: str = ""
+    """where it came from: the file and the piece's name there (and 'mirrored')"""
+    placement: PiecePlacement = msgspec.field(default_factory=PiecePlacement)
+
+
 class Design(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
-    """A whole garment design."""
+    """A whole garment design: a sloper (``kind`` 'none' for none) with its
+    strokes, and free-form pieces (imported patterns), sewn by seam strokes."""
 
     sloper: Sloper = msgspec.field(default_factory=Sloper)
     strokes: list[Stroke] = []
@@ -107,3 +155,6 @@ class Design(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     body: Body = msgspec.field(default_factory=Body)
     scene: SceneFlags = msgspec.field(default_factory=SceneFlags)
     resolution: Resolution = msgspec.field(default_factory=Resolution)
+    pieces: list[Piece] = []
+    """free-form panels besides the sloper's (an old file without the field
+    has none: ``couture/design/v1`` gained it as an optional field)"""

@@ -48,6 +48,7 @@ from couture.pattern.geometry import Curve
 from couture.pattern.options import resolve
 from couture.pattern.placement import fit_ring, place
 from couture.pattern.slopers import SLOPERS, SloperDraft
+from couture.pattern.slopers.base import SloperDef
 from schemas.design import Design, Stroke
 
 SPACING = 0.01
@@ -140,10 +141,18 @@ class DraftContext:
     """index into pattern.seams -> element id that created it"""
 
 
+NO_SLOPER = SloperDef("none", (), lambda p: SloperDraft([]), "no sloper: a design of free-form pieces only")
+"""``Sloper.kind`` 'none': no options, no panels (not in ``SLOPERS``: nothing lists it as a garment)"""
+
+
 def sloper_of(design: Design):
     kind = design.sloper.kind
+    if kind == NO_SLOPER.kind:
+        if not design.pieces:
+            raise PatternError("sloper", "sloper kind 'none' needs free-form pieces (design.pieces is empty)")
+        return NO_SLOPER
     if kind not in SLOPERS:
-        raise PatternError("sloper", f"unknown sloper kind {kind!r}; kinds are {sorted(SLOPERS)}")
+        raise PatternError("sloper", f"unknown sloper kind {kind!r}; kinds are {sorted(SLOPERS)} or 'none'")
     return SLOPERS[kind]
 
 
@@ -163,7 +172,7 @@ def sloper_params(design: Design) -> dict[str, float]:
 
 @lru_cache(maxsize=64)
 def _counts(kind: str, topo: tuple, spacing: float) -> dict[tuple[str, str], tuple[int, ...]]:
-    sd = SLOPERS[kind]
+    sd = SLOPERS[kind] if kind in SLOPERS else NO_SLOPER
     p = {o.name: o.default for o in sd.options}
     p.update(dict(topo))
     draft = sd.draft(p)
@@ -239,7 +248,12 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
     for pd in sloper.panels:
         for sg in pd.segments:
             ctx.segs[(pd.name, sg.name)] = SegEval(sg.curves, list(counts[(pd.name, sg.name)]))
-    panel_names = [p.name for p in sloper.panels]
+    from couture.pattern.pieces import piece_panels
+
+    free = piece_panels(design)
+    panel_names = [p.name for p in sloper.panels] + [p.name for p in free]
+    for name in {n for n in panel_names if panel_names.count(n) > 1}:
+        raise PatternError(name, "two panels have this name (free-form pieces and sloper panels need unique names)")
 
     ids = set()
     for st in design.strokes:
@@ -398,6 +412,7 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
                 hole = c + r * (np.cos(th)[:, None] * t + np.sin(th)[:, None] * a)
             holes.append(hole)
         panels.append(Panel(pd.name, outline, holes, segments))
+    panels.extend(free)
 
     # symmetry: mirror half panels
     for st in design.strokes:
@@ -428,7 +443,9 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
         owners.append(owner)
 
     # placement, then seam orientation from the placed segments
-    for ring in sloper.rings:
+    from couture.pattern.pieces import piece_rings
+
+    for ring in sloper.rings + piece_rings(design, body=design.body.name):
         for name, pl in fit_ring(ring, by_name, body=design.body.name).items():
             by_name[name].placement = pl
     pattern = DraftedPattern(panels, seams)

@@ -160,7 +160,10 @@ def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str,
     n_rows = max(2, int(np.ceil((y_hi - y_lo) / ROW_SPACING)) + 1)
     ys = np.linspace(y_lo, y_hi, n_rows)
     ext = [_extents(o, ys) for o in outlines]
-    spans = [((o[:, 1].min() <= ys) & (ys <= o[:, 1].max())) for o in outlines]
+    # a panel spans the rows its y range covers, to round-off: hems that are level in
+    # exact arithmetic (an imported pair's, 1e-16 m apart) all reach the bottom row
+    tol = 1e-9 * max(y_hi - y_lo, 1.0)
+    spans = [((o[:, 1].min() <= ys + tol) & (ys - tol <= o[:, 1].max())) for o in outlines]
     widths = np.array([np.where(sp, hi - lo, 0.0) for (lo, hi), sp in zip(ext, spans, strict=True)])  # (panels, rows)
     girth = widths.sum(axis=0)
 
@@ -241,6 +244,15 @@ def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str,
         for p in range(n):
             x0[p, i] = ext[p][0][i] - starts[p]
 
+    if getattr(ring, "top_rows_as_full", False):
+        # a curved top (an imported skirt's waist, higher at the sides): above the highest row
+        # that every panel crosses at half its width or more, the panels keep that row's layout,
+        # not a row of slivers spread round the body with the shortfall between them
+        full = np.all(widths >= 0.5 * widths.max(axis=1, keepdims=True), axis=0)
+        if full.any():
+            i_full = int(np.nonzero(full)[0].max())
+            x0[:, i_full + 1 :] = x0[:, i_full : i_full + 1]
+            R[i_full + 1 :] = R[i_full]
     out = {}
     for p, name in enumerate(ring.panels):
         out[name] = Placement(

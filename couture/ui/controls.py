@@ -87,6 +87,8 @@ class Controls:
         if self.sloper.value != d.sloper.kind and d.sloper.kind in self.sloper.options:
             self.sloper.value = d.sloper.kind  # type: ignore[misc]  # viser has the setter; mypy misses it
             self._build_option_sliders(d)
+        elif d.sloper.kind not in self.sloper.options and self.params:
+            self._build_option_sliders(d)  # free-form pieces only (an imported pattern): no sloper options
         values = option_values(d)  # a sloper drafted from the body follows the body
         for name, h in self.params.items():
             if name in values:

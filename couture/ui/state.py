@@ -98,8 +98,9 @@ def sloper_kinds() -> list[str]:
 
 
 def sloper_options(kind: str) -> tuple[Option, ...]:
-    """The option table of a sloper (default, min, max, unit)."""
-    return tuple(SLOPERS[kind].options)
+    """The option table of a sloper (default, min, max, unit); none for a
+    design of free-form pieces (sloper kind 'none')."""
+    return tuple(SLOPERS[kind].options) if kind in SLOPERS else ()
 
 
 def option_values(design: Any) -> dict[str, float]:

@@ -58,6 +58,10 @@ class Ring:
     """material y placed at its own axial coordinate (the rows above and below
     it shorten toward it along the axis, keeping their meridian lengths); None:
     the top of the ring's panels"""
+    top_rows_as_full: bool = False
+    """rows above the highest one that every panel crosses at half its width or
+    more keep that row's layout (free-form pieces with a curved top); False:
+    every row laid out from its own widths"""
     landmark: str | None = None
     """'waist': ``origin`` lies at the default mannequin's waist height, and on
     another body the ring moves along its axis to that body's waist

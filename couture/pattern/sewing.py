@@ -1,0 +1,650 @@
+"""Imported pieces -> a design: pieces unfolded and paired, corners found,
+outlines resampled, seams suggested with a confidence, pieces placed round
+the body by role (``couture import``).
+
+- Cut on the fold: the half is mirrored about its fold edge (the straight
+  edge on its centre side) into one whole panel.
+- Cut 2 (a mirrored pair): two panels, the piece as drawn and its mirror
+  image, '<name>_left' and '<name>_right' (the body's left and right).
+- Corners: outline vertices where the sew line turns more than
+  ``CORNER_ANGLE`` (over a ``CORNER_REACH`` neighbourhood, so a densely
+  flattened curve is no corner); segments run between consecutive corners
+  and are resampled to about ``SPACING`` (corners kept exactly).
+- Seams (:func:`suggest_seams`): dart legs (two consecutive segments of one
+  panel of equal length meeting in a sharp V); then side seams, pairs of a
+  segment on one panel's right side and one on another's left side whose
+  lengths agree within ``LENGTH_TOLERANCE``, greedily by confidence. A
+  confidence in [0, 1] says how sure: length agreement, equal notch counts,
+  and whether the two panels are a mirrored pair or a front and a back. An
+  unpaired segment is a free edge (a hem, a neckline, a waist).
+- Placement: the panels round the torso in the order the side seams chain
+  them (a panel's right side sewn to the next one's left), starting from the
+  front; where they do not chain, by role (front 0, left pi/2, back pi, right
+  3 pi/2). The top at the waist (a lower garment) or the shoulder (a top).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from couture.pattern import mannequin as M
+from couture.pattern.errors import PatternError
+from couture.pattern.geometry import polyline_length, signed_area
+from couture.pattern.imported import ImportedPiece
+from schemas.design import Body, Design, Fabric, Piece, PiecePlacement, Sloper, Stroke
+
+SPACING = 0.01
+"""[m] target spacing of the resampled sew line (the sloper drafts at the same)"""
+CORNER_ANGLE = math.radians(30)
+CORNER_REACH = 0.004
+"""[m] a corner's turn is measured between points this far before and after it"""
+LENGTH_TOLERANCE = 0.03
+"""two segments pair as a seam when their lengths differ by at most this fraction (or 5 mm)"""
+MIN_SEAM = 0.03
+"""[m] segments shorter than this are not suggested as seams (vent corners, notches)"""
+DART_ANGLE = math.radians(45)
+"""two consecutive legs meeting at less than this are a dart"""
+WOVEN_STRETCH_STIFFNESS = 200.0
+"""[N/m] the fabric an imported design starts with: patterns from other tools are
+mostly drafted for woven cloth; couture's default cotton (20 N/m) is so stretchy
+that a fitted pencil skirt's waist (FreeSewing penelope) stretches over the hips
+and the skirt falls to the floor (measured: 58 cm drop at 20 N/m, 5 cm at 200)"""
+TUBE_ROLES = ("sleeve", "cuff")
+"""pieces sewn into a tube by their own two long sides"""
+ROLE_WORDS = ("waistband", "sleeve", "collar", "cuff", "yoke", "facing", "pocket", "binding", "front", "back", "side")
+
+
+@dataclass
+class Suggestion:
+    """A suggested seam: two segments to sew, with how sure the importer is."""
+
+    a_panel: str
+    a_segment: str
+    b_panel: str
+    b_segment: str
+    confidence: float
+    """in [0, 1]"""
+    reason: str
+    a_length: float = 0.0
+    """[m]"""
+    b_length: float = 0.0
+    """[m]"""
+
+
+@dataclass
+class _Panel:
+    name: str
+    outline: np.ndarray
+    corners: list[int]
+    holes: list[np.ndarray] = field(default_factory=list)
+    notches: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    role: str = ""
+    side: str = ""
+    """'left' or 'right' of a mirrored pair, '' for a whole panel"""
+    twin: str = ""
+    """the other panel of a mirrored pair"""
+    grain: float = 0.0
+    source: str = ""
+
+
+def role_of(name: str) -> str:
+    low = re.sub(r"[^a-z]", " ", re.sub(r"([a-z])([A-Z])", r"\1 \2", name).lower())
+    for w in ROLE_WORDS:
+        if w in low.split() or (w in low and w in ("waistband", "sleeve", "collar")):
+            return w
+    return ""
+
+
+# ------------------------------------------------------------------ geometry
+
+
+def _turns(P: np.ndarray, reach: float) -> np.ndarray:
+    """Turning angle [rad] at each vertex of the closed polyline, between the
+    directions to the points ``reach`` [m] before and after it along the line."""
+    k = len(P)
+    E = np.roll(P, -1, axis=0) - P
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(E, axis=1))])
+    L = s[-1]
+    before = _at(P, s, (s[:k] - reach) % L)
+    after = _at(P, s, (s[:k] + reach) % L)
+    a, b = P - before, after - P
+    na, nb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+    cos = (a * b).sum(1) / np.maximum(na * nb, 1e-300)
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def _at(P: np.ndarray, s: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Points at arc lengths u along the closed polyline P (cumulative lengths s)."""
+    Q = np.vstack([P, P[:1]])
+    j = np.clip(np.searchsorted(s, u, side="right") - 1, 0, len(P) - 1)
+    t = ((u - s[j]) / np.maximum(s[j + 1] - s[j], 1e-300))[:, None]
+    return (1 - t) * Q[j] + t * Q[j + 1]
+
+
+def find_corners(P: np.ndarray, angle: float = CORNER_ANGLE, reach: float = CORNER_REACH) -> list[int]:
+    """Indices of the outline's corners, increasing: local maxima of the turn
+    (within ``reach``) above ``angle``; at least three (the polygon's
+    extreme vertices when the outline has fewer corners, e.g. a circle)."""
+    th = _turns(P, reach)
+    E = np.roll(P, -1, axis=0) - P
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(E, axis=1))])
+    L = s[-1]
+    order = np.argsort(-th)
+    picked: list[int] = []
+    for i in order:
+        if th[i] < angle:
+            break
+        if all(min(abs(s[i] - s[j]), L - abs(s[i] - s[j])) > 2 * reach for j in picked):
+            picked.append(int(i))
+    if len(picked) < 3:
+        for i in (int(np.argmin(P[:, 0])), int(np.argmax(P[:, 0])), int(np.argmin(P[:, 1])), int(np.argmax(P[:, 1]))):
+            if i not in picked and all(min(abs(s[i] - s[j]), L - abs(s[i] - s[j])) > 0.1 * L for j in picked):
+                picked.append(i)
+    return sorted(picked)
+
+
+def resample(P: np.ndarray, corners: list[int], spacing: float = SPACING) -> tuple[np.ndarray, list[int]]:
+    """The outline with each segment between corners resampled to about
+    ``spacing`` [m] by arc length (corners kept exactly); the new corner indices."""
+    out: list[np.ndarray] = []
+    new_corners: list[int] = []
+    k = len(P)
+    for i, c in enumerate(corners):
+        d = corners[(i + 1) % len(corners)]
+        idx = (c + np.arange((d - c) % k + 1)) % k if d != c else (c + np.arange(k + 1)) % k
+        Q = P[idx]
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(Q, axis=0), axis=1))])
+        n = max(2, math.ceil(s[-1] / spacing))
+        u = np.linspace(0, s[-1], n + 1)[:-1]
+        j = np.clip(np.searchsorted(s, u, side="right") - 1, 0, len(Q) - 2)
+        t = ((u - s[j]) / np.maximum(s[j + 1] - s[j], 1e-300))[:, None]
+        new_corners.append(sum(len(o) for o in out))
+        out.append((1 - t) * Q[j] + t * Q[j + 1])
+    return np.vstack(out), new_corners
+
+
+def _straight_run(P: np.ndarray, at_min_x: bool) -> float:
+    """[m] vertical extent of the longest run of outline vertices on the
+    outline's min x (or max x) line, to 0.1 mm (0 when there is none)."""
+    x0 = P[:, 0].min() if at_min_x else P[:, 0].max()
+    on = np.abs(P[:, 0] - x0) < 1e-4
+    k = len(P)
+    best, i = 0.0, 0
+    while i < 2 * k:
+        if on[i % k]:
+            j = i
+            while j + 1 < i + k and on[(j + 1) % k]:
+                j += 1
+            ys = P[(np.arange(i, j + 1)) % k, 1]
+            best = max(best, float(np.ptp(ys)))
+            i = j + 1
+        else:
+            i += 1
+    return best
+
+
+def centre_at_min_x(pc: ImportedPiece) -> bool:
+    """Whether the piece's centre (fold, centre front/back) edge is its left
+    one: as the file says, else the side with the longer straight vertical edge."""
+    if pc.center_at_min_x is not None:
+        return pc.center_at_min_x
+    return _straight_run(pc.sew, True) >= _straight_run(pc.sew, False)
+
+
+def _unfold(P: np.ndarray, at_min_x: bool) -> np.ndarray | None:
+    """A half cut on the fold, mirrored about its fold edge: the vertical
+    straight run at its min x (``at_min_x``) or max x; None when there is none."""
+    x0 = P[:, 0].min() if at_min_x else P[:, 0].max()
+    on = np.abs(P[:, 0] - x0) < 1e-4
+    k = len(P)
+    if on.sum() < 2:
+        return None
+    # the longest cyclic run of vertices on the fold line
+    best, run, start, best_start = 0, 0, 0, 0
+    for i in range(2 * k):
+        if on[i % k]:
+            if run == 0:
+                start = i
+            run += 1
+            if run > best:
+                best, best_start = min(run, k), start
+        else:
+            run = 0
+    if best < 2:
+        return None
+    ys = P[(best_start + np.arange(best)) % k, 1]
+    if abs(ys[-1] - ys[0]) < 0.2 * np.ptp(P[:, 1]):
+        return None
+    first, last = best_start % k, (best_start + best - 1) % k
+    half = P[(last + np.arange((first - last) % k + 1)) % k]  # fold end ... round the piece ... fold start
+    mirrored = half[::-1].copy()
+    mirrored[:, 0] = 2 * x0 - mirrored[:, 0]
+    whole = np.vstack([half, mirrored[1:-1]])
+    return whole if signed_area(whole) > 0 else whole[::-1].copy()
+
+
+def _mirror(P: np.ndarray) -> np.ndarray:
+    Q = P[::-1].copy()
+    Q[:, 0] = -Q[:, 0]
+    return Q
+
+
+# ------------------------------------------------------------------ panels
+
+
+def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Panel]:
+    """Whole panels: halves unfolded, mirrored pairs doubled, corners found,
+    outlines resampled, each panel's top at material y = 0 and left at x = 0."""
+    out: list[_Panel] = []
+    for pc in pieces:
+        P = pc.sew
+        center_min = centre_at_min_x(pc)
+        if pc.on_fold:
+            band = np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and role_of(pc.name) in ("waistband", "binding", "")
+            W = None
+            if band:  # a band cut on the fold: its fold is a short edge; unfold it along its length
+                R = np.column_stack([-P[:, 1], P[:, 0]])  # rotated a quarter turn: the length along x
+                U = _unfold(R, at_min_x=False)
+                if U is None:
+                    U = _unfold(R, at_min_x=True)
+                W = U
+            else:
+                W = _unfold(P, center_min)
+            if W is not None:
+                P = W
+        elif np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and role_of(pc.name) in ("waistband", "binding"):
+            P = np.column_stack([-P[:, 1], P[:, 0]])  # a band lies along material x (round the body)
+        copies: list[tuple[str, np.ndarray, str]] = []
+        if pc.mirrored and pc.cut_count >= 2:
+            a, b = P, _mirror(P)
+            # a piece drawn with its centre to the left lies on the body's left at the front, its right at the back
+            role = role_of(pc.name)
+            drawn_left = center_min == (role != "back")
+            copies = [("left", a if drawn_left else b, ""), ("right", b if drawn_left else a, "")]
+        else:
+            copies = [("", P, "")]
+        for side, Q, _ in copies:
+            Q = Q - np.array([Q[:, 0].min(), Q[:, 1].max()])
+            corners = find_corners(Q)
+            R, rc = resample(Q, corners, spacing)
+            name = f"{pc.name}_{side}" if side else pc.name
+            notches = pc.notches
+            out.append(
+                _Panel(
+                    name,
+                    R,
+                    rc,
+                    notches=np.zeros((0, 2)) if side else notches - np.array([P[:, 0].min(), P[:, 1].max()]),
+                    role=role_of(pc.name),
+                    side=side,
+                    source=pc.name + (" (mirrored)" if side and Q is not P else ""),
+                )
+            )
+        if len(copies) == 2:
+            out[-2].twin, out[-1].twin = out[-1].name, out[-2].name
+    return out
+
+
+# ------------------------------------------------------------------ seams
+
+
+@dataclass
+class _Seg:
+    panel: str
+    name: str
+    pts: np.ndarray
+    length: float
+    facing: str
+    """'left', 'right', 'top', 'bottom': where its outward normal points"""
+    notches: int
+
+
+def _segments(p: _Panel) -> list[_Seg]:
+    out = []
+    k = len(p.outline)
+    for i, c in enumerate(p.corners):
+        d = p.corners[(i + 1) % len(p.corners)]
+        n = (d - c) % k or k
+        Q = p.outline[(c + np.arange(n + 1)) % k]
+        ch = Q[-1] - Q[0]
+        # outward normal of a CCW outline: the chord turned clockwise; for a closed loop, the mean edge normal
+        E = np.diff(Q, axis=0)
+        nrm = np.array([E[:, 1].sum(), -E[:, 0].sum()]) if np.linalg.norm(ch) > 1e-9 else np.array([0.0, 1.0])
+        facing = (
+            ("right" if nrm[0] > 0 else "left") if abs(nrm[0]) >= abs(nrm[1]) else ("top" if nrm[1] > 0 else "bottom")
+        )
+        dist = np.array([np.min(np.linalg.norm(Q - q, axis=1)) for q in p.notches]) if len(p.notches) else np.zeros(0)
+        out.append(_Seg(p.name, f"e{i}", Q, float(polyline_length(Q)), facing, int((dist < 0.003).sum())))
+    return out
+
+
+def _centre_facing(p: _Panel) -> str:
+    """Which side of a mirrored pair's panel meets its twin at the body's
+    centre line. Material x grows with theta (front, the body's left, back,
+    its right), so the left front panel starts at the centre front (its left
+    side), the left back ends at the centre back (its right side), and the
+    right-hand panels the other way round."""
+    if not p.side:
+        return ""
+    at_back = p.role == "back"
+    return ("right" if at_back else "left") if p.side == "left" else ("left" if at_back else "right")
+
+
+def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> list[Suggestion]:
+    """Seams the importer would sew (module docstring), best first."""
+    segs = {p.name: _segments(p) for p in panels}
+    by = {p.name: p for p in panels}
+    used: set[tuple[str, str]] = set()
+    out: list[Suggestion] = []
+    # darts: consecutive legs of equal length meeting in a sharp V that points into the panel
+    for p in panels:
+        S = segs[p.name]
+        for i in range(len(S)):
+            a, b = S[i], S[(i + 1) % len(S)]
+            if (a.panel, a.name) in used or (b.panel, b.name) in used or a.length < MIN_SEAM:
+                continue
+            if abs(a.length - b.length) > max(0.003, 0.05 * a.length) or a.length > 0.3:
+                continue
+            u, v = a.pts[0] - a.pts[-1], b.pts[-1] - b.pts[0]
+            ang = math.acos(np.clip(u @ v / max(np.linalg.norm(u) * np.linalg.norm(v), 1e-300), -1, 1))
+            mouth = 0.5 * (a.pts[0] + b.pts[-1])
+            from couture.pattern.geometry import point_in_polygon
+
+            # beyond the apex, away from the mouth, lies cloth: the V is cut into the panel
+            apex_inside = bool(point_in_polygon((a.pts[-1] + 0.1 * (a.pts[-1] - mouth))[None], p.outline)[0])
+            if ang < DART_ANGLE and apex_inside:
+                conf = 0.9 * (1 - abs(a.length - b.length) / max(0.003, 0.05 * a.length)) + 0.1
+                out.append(
+                    Suggestion(p.name, a.name, p.name, b.name, round(float(conf), 3), "dart legs", a.length, b.length)
+                )
+                used.update({(a.panel, a.name), (b.panel, b.name)})
+    # side seams: a right-facing segment with a left-facing one of another panel (or, for a
+    # sleeve, cuff or band, of the same panel: its underarm seam closes it into a tube)
+    cands = []
+    for pa in panels:
+        for pb in panels:
+            tube = pa.role in TUBE_ROLES
+            if pa.name == pb.name and not tube:
+                continue
+            if pa.name != pb.name and tube and pb.role in TUBE_ROLES and by[pa.name].twin == pb.name:
+                continue  # a left and a right sleeve are on opposite arms
+            for a in segs[pa.name]:
+                if a.facing != "right" or a.length < MIN_SEAM or (a.panel, a.name) in used:
+                    continue
+                for b in segs[pb.name]:
+                    if b.facing != "left" or b.length < MIN_SEAM or (b.panel, b.name) in used:
+                        continue
+                    tol = max(0.005, tolerance * max(a.length, b.length))
+                    rel = abs(a.length - b.length) / tol
+                    if rel > 1:
+                        continue
+                    reasons = ["lengths agree"]
+                    conf = 0.55 * (1 - rel)
+                    if a.notches == b.notches:
+                        conf += 0.15
+                        if a.notches:
+                            reasons.append(f"{a.notches} notches each")
+                    if by[pa.name].twin == pb.name:
+                        # twins meet at their centre edges only (their other sides are across the body)
+                        if a.facing != _centre_facing(by[pa.name]) or b.facing != _centre_facing(by[pb.name]):
+                            continue
+                        conf += 0.3
+                        reasons.append("mirrored pair")
+                    elif {by[pa.name].role, by[pb.name].role} == {"front", "back"}:
+                        conf += 0.3
+                        reasons.append("front and back")
+                    elif pa.name == pb.name:
+                        conf += 0.3
+                        reasons.append(f"closes the {pa.role} into a tube")
+                    elif by[pa.name].role and by[pa.name].role == by[pb.name].role:
+                        conf += 0.1
+                    cands.append((conf, a, b, ", ".join(reasons)))
+    cands.sort(key=lambda c: -c[0])
+    for conf, a, b, why in cands:
+        if (a.panel, a.name) in used or (b.panel, b.name) in used:
+            continue
+        out.append(
+            Suggestion(a.panel, a.name, b.panel, b.name, round(float(min(conf, 1.0)), 3), why, a.length, b.length)
+        )
+        used.update({(a.panel, a.name), (b.panel, b.name)})
+    return out
+
+
+def free_edges(panels: list[_Panel], seams: list[Suggestion]) -> list[tuple[str, str, float]]:
+    """(panel, segment, length [m]) of every segment no seam uses."""
+    used = {(s.a_panel, s.a_segment) for s in seams} | {(s.b_panel, s.b_segment) for s in seams}
+    return [(g.panel, g.name, g.length) for p in panels for g in _segments(p) if (g.panel, g.name) not in used]
+
+
+# ------------------------------------------------------------------ placement
+
+_ROLE_ANGLE = {"front": 0.0, "back": math.pi}
+
+
+def ring_order(panels: list[_Panel], seams: list[Suggestion]) -> list[str]:
+    """The torso panels in theta order: from the front, following side seams
+    (a panel's right side sewn to the next one's left); panels the chain
+    misses are put in by role."""
+    torso = [
+        p for p in panels if p.role not in ("sleeve", "waistband", "collar", "cuff", "binding", "pocket", "facing")
+    ]
+    if not torso:
+        return []
+    names = {p.name for p in torso}
+    nxt: dict[str, str] = {}
+    segs = {p.name: {g.name: g for g in _segments(p)} for p in torso}
+    for s in seams:
+        if s.a_panel == s.b_panel or s.a_panel not in names or s.b_panel not in names:
+            continue
+        fa, fb = segs[s.a_panel][s.a_segment].facing, segs[s.b_panel][s.b_segment].facing
+        if fa == "right" and fb == "left":
+            nxt.setdefault(s.a_panel, s.b_panel)
+        elif fa == "left" and fb == "right":
+            nxt.setdefault(s.b_panel, s.a_panel)
+
+    def angle(p: _Panel) -> float:
+        a = _ROLE_ANGLE.get(p.role, math.pi / 2)
+        if p.side == "left":
+            a += -0.25 * math.pi if p.role == "back" else 0.25 * math.pi
+        elif p.side == "right":
+            a += 0.25 * math.pi if p.role == "back" else -0.25 * math.pi + 2 * math.pi
+        return a % (2 * math.pi)
+
+    start = min(torso, key=lambda p: (angle(p) if angle(p) <= math.pi else angle(p) - 2 * math.pi) ** 2)
+    order = [start.name]
+    while nxt.get(order[-1]) and nxt[order[-1]] not in order:
+        order.append(nxt[order[-1]])
+    rest = sorted((p for p in torso if p.name not in order), key=angle)
+    return order + [p.name for p in rest]
+
+
+def is_top(panels: list[_Panel]) -> bool:
+    """A garment worn from the shoulders (has a sleeve, a collar, a yoke, or 'shirt'/'top' pieces)."""
+    return any(p.role in ("sleeve", "collar", "yoke") for p in panels) or any(
+        re.search(r"shirt|bodice|top|blouse|dress|tee", p.source.lower()) for p in panels
+    )
+
+
+# ------------------------------------------------------------------ the design
+
+
+@dataclass
+class ImportReport:
+    """What ``couture import`` found and decided."""
+
+    panels: list[str]
+    seams: list[Suggestion]
+    free: list[tuple[str, str, float]]
+    order: list[str]
+    landmark: str
+    notes: list[str] = field(default_factory=list)
+
+
+HALF_GIRTH = 0.6
+"""torso pieces whose widths add up to less than this fraction of the body's hip
+girth (and at least half of that) are halves cut on the fold that the file does
+not mark (Valentina's DXF)"""
+_NOT_TORSO = ("sleeve", "waistband", "collar", "cuff", "binding", "pocket", "facing")
+
+
+def _halves_unfolded(pieces: list[ImportedPiece], body: str, notes: list[str]) -> list[ImportedPiece]:
+    """The pieces, with the torso pieces marked 'cut on the fold' when they are
+    too narrow together to go round the body (``HALF_GIRTH``) and each has a
+    straight vertical edge to unfold about."""
+    from dataclasses import replace
+
+    from couture.bodies import measured
+
+    torso = [p for p in pieces if role_of(p.name) not in _NOT_TORSO]
+    if not torso:
+        return pieces
+    girth = sum(
+        float(np.ptp(p.sew[:, 0])) * (2 if p.on_fold else 1) * (2 if p.mirrored and p.cut_count >= 2 else 1)
+        for p in torso
+    )
+    hip = float(measured(body)["hip_girth"])
+    if not (0.5 * HALF_GIRTH * hip <= girth < HALF_GIRTH * hip):
+        return pieces  # whole garment pieces, or too little for half a garment (a collar, a test swatch)
+    candidates = [p for p in torso if not p.on_fold and not p.mirrored]
+    if not candidates or any(
+        max(_straight_run(p.sew, True), _straight_run(p.sew, False)) < 0.5 * np.ptp(p.sew[:, 1]) for p in candidates
+    ):
+        return pieces
+    notes.append(
+        f"the torso pieces add up to {girth * 100:.0f} cm round, less than {HALF_GIRTH:g} of the body's hip "
+        f"({hip * 100:.0f} cm): read as halves cut on the fold ({', '.join(p.name for p in candidates)}), "
+        "each unfolded about its straight centre edge"
+    )
+    ids = {id(p) for p in candidates}
+    return [replace(p, on_fold=True) if id(p) in ids else p for p in pieces]
+
+
+def build_design(
+    pieces: list[ImportedPiece],
+    *,
+    body: str = "default",
+    landmark: str | None = None,
+    exclude: tuple[str, ...] = (),
+    min_confidence: float = 0.5,
+    stretch_stiffness: float = WOVEN_STRETCH_STIFFNESS,
+) -> tuple[Design, ImportReport]:
+    """A design of the imported pieces: free-form pieces, the suggested seams
+    at or above ``min_confidence`` as seam strokes, the torso ring in seam
+    order with its top at the body's waist (``landmark`` 'waist') or
+    shoulder ('shoulder'; default: 'shoulder' for a top, else 'waist').
+    Pieces named in ``exclude`` are left out; pieces that are neither torso
+    pieces nor placed lie flat in front of the body."""
+    from couture.bodies import measured
+
+    kept = [p for p in pieces if p.name not in exclude]
+    if not kept:
+        raise PatternError("pieces", f"no pieces left to import (all of {[p.name for p in pieces]} excluded)")
+    notes: list[str] = []
+    kept = _halves_unfolded(kept, body, notes)
+    panels = panels_of(kept)
+    seams = [s for s in suggest_seams(panels) if s.confidence >= min_confidence]
+    order = ring_order(panels, seams)
+    lm = landmark or ("shoulder" if is_top(panels) else "waist")
+    if lm not in ("waist", "shoulder"):
+        raise PatternError("landmark", f"landmark {lm!r} is not 'waist' or 'shoulder'")
+    m0 = measured("default")
+    height = float(m0["waist_y"]) if lm == "waist" else float(m0["underarm_y"]) + (M.SHOULDER_Y - M.UNDERARM_Y)
+    if lm == "waist":
+        height += 0.02  # the waist edge a little above the waist: the cloth settles onto it
+    pos = {n: i for i, n in enumerate(order)}
+    # the first panel's centre angle: the front panel centred at theta = 0, or a front pair's seam there
+    by = {p.name: p for p in panels}
+    angle0 = 0.0
+    if order and by[order[0]].side:
+        w = [np.ptp(by[n].outline[:, 0]) for n in order]
+        angle0 = float(math.pi * w[0] / max(sum(w), 1e-9))
+    out_pieces = []
+    for p in panels:
+        ringed = p.name in pos
+        out_pieces.append(
+            Piece(
+                name=p.name,
+                outline=[(float(x), float(y)) for x, y in p.outline],
+                corners=list(p.corners),
+                notches=[(float(x), float(y)) for x, y in p.notches],
+                grain=p.grain,
+                role=p.role,
+                source=p.source,
+                placement=PiecePlacement(
+                    ring="torso" if ringed else "flat",
+                    position=pos.get(p.name, 0),
+                    angle=angle0,
+                    height=height,
+                ),
+            )
+        )
+    strokes = [
+        Stroke(
+            id=f"seam:{s.a_panel}:{s.a_segment}:{s.b_panel}:{s.b_segment}",
+            kind="seam",
+            params={
+                "a_panel": s.a_panel,
+                "a_segment": s.a_segment,
+                "b_panel": s.b_panel,
+                "b_segment": s.b_segment,
+                "confidence": s.confidence,
+                "reason": s.reason,
+            },
+        )
+        for s in seams
+    ]
+    design = Design(
+        sloper=Sloper(kind="none"),
+        strokes=strokes,
+        pieces=out_pieces,
+        body=Body(name=body),
+        fabric=Fabric(name="woven", stretch_stiffness=stretch_stiffness),
+    )
+    report = ImportReport(
+        panels=[p.name for p in panels],
+        seams=seams,
+        free=free_edges(panels, seams),
+        order=order,
+        landmark=lm,
+        notes=notes,
+    )
+    return design, report
+
+
+# ------------------------------------------------------------------ the body
+
+_FS_GIRTHS = (("bust_girth", ("chest", "highBust")), ("waist_girth", ("waist",)), ("hip_girth", ("seat", "hips")))
+
+
+def body_for_measurements(meas: dict, source: str = "measurements") -> tuple[str, str]:
+    """The shipped body (``couture bodies list``) nearest a FreeSewing
+    measurement set ({name: mm}: chest, waist, seat or hips, height), by the
+    root mean square difference of bust, waist and hip girths and stature;
+    (its name, a line saying how near). A set of your own exactly:
+    ``couture bodies make NAME --measure ...``."""
+    from couture.bodies import measured, names
+
+    if not isinstance(meas, dict):
+        raise PatternError(source, "a measurement set is a JSON object of {name: millimetres}")
+    want: dict[str, float] = {}
+    for key, fs_names in _FS_GIRTHS + (("height", ("height",)),):
+        for n in fs_names:
+            v = meas.get(n)
+            if isinstance(v, (int, float)) and math.isfinite(v) and v > 0:
+                want[key] = float(v) / 1000.0
+                break
+    if len(want) < 2:
+        raise PatternError(
+            source, "needs at least two of chest, waist, seat (or hips), height [mm] (FreeSewing's names)"
+        )
+    best, best_d = "default", math.inf
+    for name in names():
+        m = measured(name)
+        d = math.sqrt(sum((m[k] - v) ** 2 for k, v in want.items()) / len(want))
+        if d < best_d:
+            best, best_d = name, d
+    return best, f"nearest shipped body {best!r} (rms difference {best_d * 100:.1f} cm over {', '.join(sorted(want))})"
