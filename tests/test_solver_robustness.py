@@ -10,8 +10,10 @@
   (``friction_model="huber"``) both solvers rest it on the sphere.
 - Free-hanging folds: a sheet hanging from two corners held closer together
   than its width, no body.
-- Exact and near null modes are covered by tests/test_solver_convergence.py
-  (a sheet on a sphere held at one vertex, and at two).
+- Exact null mode: a frictionless seamed band on a cone (a body of revolution:
+  the band is free to spin about its axis). Others are covered by
+  tests/test_solver_convergence.py (a sheet on a sphere held at one vertex, and
+  at two).
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from solver_testmodel import fabric
 
 from couture.cloth import ClothModel, Scene
 from couture.cloth.body import SphereBody
-from couture.mesh import grid_sheet
+from couture.mesh import GarmentMesh, grid_sheet
 from couture.solvers import get_solver
 from couture.solvers.common import verdict
 
@@ -86,6 +88,85 @@ def test_rounded_box_distance_is_consistent():
     assert box.phi_grad(np.array([[0.0, 0.2, 0.0]]))[0][0] == pytest.approx(0.05)
     c = 0.14 + 0.01 / np.sqrt(3)
     assert box.phi_grad(np.array([[c + 0.01, c + 0.01, c + 0.01]]))[0][0] == pytest.approx(np.sqrt(3) * 0.01, abs=1e-12)
+
+
+class Cone:
+    """An infinite cone about the y axis, its apex at y = ``apex``, widening
+    downward with half angle ``alpha``: signed distance r cos a - (apex - y) sin a
+    (exact on the side of the surface away from the apex's cap)."""
+
+    def __init__(self, apex: float, alpha: float):
+        self.apex, self.ca, self.sa = float(apex), float(np.cos(alpha)), float(np.sin(alpha))
+
+    def phi_grad(self, points):
+        p = np.asarray(points, float)
+        r = np.linalg.norm(p[:, [0, 2]], axis=1)
+        phi = r * self.ca - (self.apex - p[:, 1]) * self.sa
+        g = np.column_stack([self.ca * p[:, 0] / r, np.full(len(p), self.sa), self.ca * p[:, 2] / r])
+        return phi, g
+
+    def phi_hess(self, points):
+        """cos a (P - e eᵀ) / r: P the horizontal plane, e the horizontal radial direction."""
+        p = np.asarray(points, float)
+        r = np.linalg.norm(p[:, [0, 2]], axis=1)
+        e = np.zeros_like(p)
+        e[:, 0], e[:, 2] = p[:, 0] / r, p[:, 2] / r
+        P = np.zeros((len(p), 3, 3))
+        P[:, 0, 0] = P[:, 2, 2] = 1.0
+        return self.ca * (P - e[:, :, None] * e[:, None, :]) / r[:, None, None]
+
+
+def test_cone_distance_is_consistent():
+    """The cone's gradient and Hessian against central differences of its distance."""
+    cone = Cone(0.6, 0.3)
+    rng = np.random.default_rng(4)
+    pts = rng.uniform(-0.3, 0.3, size=(200, 3))
+    pts = pts[np.linalg.norm(pts[:, [0, 2]], axis=1) > 0.05]
+    fd = along_axes(lambda p: cone.phi_grad(p)[0], pts, 1e-6)
+    assert_close(cone.phi_grad(pts)[1], fd, 1e-6, floor=1.0, what="distance gradient")
+    for k in range(3):
+        fdg = along_axes(lambda p, k=k: cone.phi_grad(p)[1][:, k], pts, 1e-6)
+        assert_close(cone.phi_hess(pts)[:, k, :], fdg, 1e-4, floor=1.0, nontrivial=None, what="distance Hessian")
+    # on the surface: radius (apex - y) tan a
+    assert cone.phi_grad(np.array([[0.6 * np.tan(0.3), 0.0, 0.0]]))[0][0] == pytest.approx(0.0, abs=1e-12)
+
+
+def seamed_band(rest_radius: float, height: float, placed_radius: float, bottom: float) -> GarmentMesh:
+    """A band: a sheet rolled into a tube of circumference 2 pi ``rest_radius``,
+    its two side edges sewn, placed (stretched) on a vertical cylinder of
+    ``placed_radius`` from y = ``bottom`` up, nothing pinned."""
+    W = 2.0 * np.pi * rest_radius
+    m = grid_sheet(W, height, 40, 5)
+    X = m.X
+    left = np.flatnonzero(X[:, 0] < 1e-9)
+    right = np.flatnonzero(X[:, 0] > W - 1e-9)
+    right = right[np.argsort(X[right, 1])]
+    j = np.argmin(np.abs(X[right, 1][None, :] - X[left, 1][:, None]), axis=1)
+    m.seam_emitters = left.astype(np.int32)
+    m.seam_edges = np.column_stack([right[j], right[np.where(j + 1 < len(right), j + 1, j - 1)]]).astype(np.int32)
+    m.seam_weights = np.zeros(len(left))  # each side vertex meets its twin exactly
+    theta = X[:, 0] / W * 2.0 * np.pi
+    m.x0 = np.column_stack([placed_radius * np.cos(theta), bottom + X[:, 1], placed_radius * np.sin(theta)])
+    m.pinned = np.zeros(0, np.int32)
+    return m
+
+
+@pytest.mark.parametrize("method", ["newton", "kinetic"])
+def test_frictionless_band_rests_on_a_cone_free_to_spin(method):
+    """A band 6 cm high, rest radius 15 cm, placed 2.5 cm out around a cone that
+    widens downward (radius 15 cm at y = 0.115 m), frictionless: it contracts onto
+    the cone and sits where its hoop tension's upward push carries its weight;
+    turning it about the axis costs nothing (an exact null mode)."""
+    cone = Cone(0.6, 0.3)
+    m = seamed_band(0.15, 0.06, 0.175, 0.10)
+    model = ClothModel(m, fabric(stretch=500.0, bend=1e-6), Scene(body=cone, friction=False))
+    res = _solve(model, method)
+    phi, _ = cone.phi_grad(res.x)
+    gaps = np.linalg.norm(res.x[m.seam_emitters] - res.x[m.seam_edges[:, 0]], axis=1)
+    assert gaps.max() < 1e-3  # the band stays closed
+    # it rests on the cone (in its 1 cm contact layer, not inside) instead of falling off
+    assert phi.min() > model.contact_offset - 1e-3 and np.mean(phi < model.contact_offset + 1e-3) > 0.25
+    assert 0.1 < res.x[:, 1].min() and res.x[:, 1].max() < 0.25
 
 
 def falling_sheet(body, top: float, friction_model: str = "anchors", nx: int = 16) -> ClothModel:
