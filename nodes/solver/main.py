@@ -33,6 +33,7 @@ the pool see each other in the node's own session and share the sessions out
 
 from __future__ import annotations
 
+import inspect
 import logging
 import math
 import os
@@ -49,7 +50,7 @@ from couture.cloth.model import ClothModel
 from couture.designs import Matched
 from couture.pattern.errors import PatternError
 from couture.pattern.limits import check_simulation_values
-from couture.solvers import SOLVERS, get_solver
+from couture.solvers import SOLVERS, get_solver, solver_class
 from couture.solvers.service import IncomingMesh, LevelRun, SolveService, scene_from_design
 from couture.tryon import TryOnError
 from schemas import (
@@ -100,8 +101,10 @@ class Config:
 
 
 def solver_options(config: Config) -> dict:
-    """Constructor options for ``get_solver(config.solver, ...)``."""
-    if config.backend and config.solver in ("kinetic", "newton"):
+    """Constructor options for ``get_solver(config.solver, ...)``: the backend,
+    for a solver whose constructor takes one (no list of names here: the
+    registry's classes say it)."""
+    if config.backend and "backend" in inspect.signature(solver_class(config.solver)).parameters:
         return {"backend": config.backend}
     return {}
 
