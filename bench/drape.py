@@ -84,10 +84,25 @@ def load(design: str) -> tuple[str, Any]:
     return path.stem, load_design(path)
 
 
-def with_options(design: Any, *, friction: bool | None = None, fine_vertices: int | None = None) -> Any:
-    """A copy of ``design`` with friction switched and/or another fine-level size."""
+FABRICS: dict[str, dict[str, float]] = {
+    "design": {},
+    "stiff": {"stretch_stiffness": 2000.0},
+    "soft": {"stretch_stiffness": 10.0, "bend_stiffness": 1e-8},
+}
+"""fabric variants of ``--fabrics``: the design's own, and the ends of the
+allowed ranges (couture.pattern.limits.FABRIC_LIMITS) the solver goals must
+hold at: stiff 2000 N/m, very soft 10 N/m with 1e-8 N m bending"""
+
+
+def with_options(
+    design: Any, *, friction: bool | None = None, fine_vertices: int | None = None, fabric: str = "design"
+) -> Any:
+    """A copy of ``design`` with friction switched, another fine-level size
+    and/or a fabric variant of ``FABRICS``."""
     import msgspec
 
+    if FABRICS[fabric]:
+        design = msgspec.structs.replace(design, fabric=msgspec.structs.replace(design.fabric, **FABRICS[fabric]))
     if friction is not None:
         design = msgspec.structs.replace(design, scene=msgspec.structs.replace(design.scene, friction=friction))
     if fine_vertices is not None:
@@ -378,7 +393,12 @@ def plot_design(path: Path, name: str, cases: list[dict[str, Any]]) -> None:
             if not lv or not lv["history"]:
                 continue
             h = np.asarray(lv["history"])
-            label = f"{case['solver']} {level}" + ("" if case["friction"] else ", frictionless")
+            fabric = case.get("fabric", "design")
+            label = (
+                f"{case['solver']} {level}"
+                + ("" if fabric == "design" else f", {fabric}")
+                + ("" if case["friction"] else ", frictionless")
+            )
             ax.semilogy(
                 lv["starts_at_s"] + h[:, 0],
                 np.maximum(h[:, 1], 1e-16),
@@ -456,7 +476,8 @@ def print_table(cases: list[dict[str, Any]]) -> None:
         for level, lv in c["levels"].items():
             la = lv["linear_algebra"]
             print(
-                f"{c['design']:15s} {c['solver']:8s} {'on' if c['friction'] else 'off':4s} {level:6s} "
+                f"{c['design'] + ('' if c.get('fabric', 'design') == 'design' else '/' + c['fabric']):15s} "
+                f"{c['solver']:8s} {'on' if c['friction'] else 'off':4s} {level:6s} "
                 f"{lv['vertices']:6d} {lv['residual']:9.2e} {'yes' if lv['converged'] else 'NO':>4s} "
                 f"{lv['iterations']:5d} {lv['wall_time_s']:7.2f} {_f(lv['steps_per_s'], '6.1f')} "
                 f"{_f(lv['time_to_1e-4_s'], '8.2f')} {la.get('factorizations', '-'):>6} "
@@ -509,6 +530,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--solvers", nargs="+", default=["newton", "kinetic"], choices=list(SOLVERS))
     ap.add_argument("--levels", default="coarse,fine", help="levels to solve, comma separated (coarse first)")
     ap.add_argument("--frictionless", action="store_true", help="also drape every design with friction off")
+    ap.add_argument(
+        "--fabrics",
+        default="design",
+        help=f"fabric variants, comma separated, of {', '.join(FABRICS)} (stiff: 2000 N/m; soft: 10 N/m, 1e-8 N m)",
+    )
     ap.add_argument("--max-seconds", type=float, default=120.0, help="[s] cap on each level's solve")
     ap.add_argument(
         "--sizes",
@@ -537,27 +563,36 @@ def main(argv: list[str] | None = None) -> int:
 
     cases: list[dict[str, Any]] = []
     variants = [True, False] if a.frictionless else [True]
-    total = len(a.designs) * len(a.solvers) * len(variants)
+    fabrics = [f for f in a.fabrics.split(",") if f]
+    unknown = sorted(set(fabrics) - set(FABRICS))
+    if unknown:
+        ap.error(f"--fabrics: unknown {', '.join(unknown)}; choose from {', '.join(FABRICS)}")
+    total = len(a.designs) * len(a.solvers) * len(variants) * len(fabrics)
     for name_or_path in a.designs:
         name, design = load(name_or_path)
-        for friction in variants:
-            for method in a.solvers:
-                k = len(cases) + 1
-                label = f"[{k}/{total}] {name} {method}" + ("" if friction else " frictionless")
-                print(f"{label}...", file=sys.stderr, flush=True)
-                case = drape_case(
-                    with_options(design, friction=friction),
-                    method,
-                    max_seconds=a.max_seconds,
-                    levels=levels,
-                    progress=True,
-                    label=label,
-                )
-                case.update(design=name, solver=method, friction=friction)
-                case["goals"] = goals(case)
-                tt = case["time_to_tol_s"]
-                print(f"{label}: total to 1e-4 {_f(tt['total'], '.2f')} s", file=sys.stderr, flush=True)
-                cases.append(case)
+        for fabric in fabrics:
+            for friction in variants:
+                for method in a.solvers:
+                    k = len(cases) + 1
+                    label = (
+                        f"[{k}/{total}] {name} {method}"
+                        + ("" if fabric == "design" else f" {fabric}")
+                        + ("" if friction else " frictionless")
+                    )
+                    print(f"{label}...", file=sys.stderr, flush=True)
+                    case = drape_case(
+                        with_options(design, friction=friction, fabric=fabric),
+                        method,
+                        max_seconds=a.max_seconds,
+                        levels=levels,
+                        progress=True,
+                        label=label,
+                    )
+                    case.update(design=name, solver=method, friction=friction, fabric=fabric)
+                    case["goals"] = goals(case)
+                    tt = case["time_to_tol_s"]
+                    print(f"{label}: total to 1e-4 {_f(tt['total'], '.2f')} s", file=sys.stderr, flush=True)
+                    cases.append(case)
         plot_design(out_dir / f"drape_{name}.png", name, [c for c in cases if c["design"] == name])
 
     sw = None

@@ -91,3 +91,20 @@ def test_convergence_tail_reads_the_order_of_a_residual_sequence():
     assert tail["ratios"][-1] == pytest.approx(quad[-1] / quad[-2])
     lin = convergence_tail([(float(i), 0.5**i) for i in range(8)])
     assert lin["order"] == pytest.approx(1.0) and all(q == pytest.approx(0.5) for q in lin["ratios"])
+
+
+def test_fabric_variants_are_the_ends_of_the_allowed_ranges():
+    """--fabrics stiff / soft set the fabric the solver goals must hold at, within
+    the limits every node checks, and leave the rest of the design as it was."""
+    from bench.drape import FABRICS, load, with_options
+    from couture.pattern.limits import check_simulation_values
+
+    _, design = load("default_skirt")
+    stiff = with_options(design, fabric="stiff")
+    soft = with_options(design, fabric="soft", friction=False)
+    assert stiff.fabric.stretch_stiffness == 2000.0 and stiff.fabric.bend_stiffness == design.fabric.bend_stiffness
+    assert (soft.fabric.stretch_stiffness, soft.fabric.bend_stiffness) == (10.0, 1e-8) and not soft.scene.friction
+    assert with_options(design, fabric="design") == design and set(FABRICS) == {"design", "stiff", "soft"}
+    for d in (stiff, soft):
+        check_simulation_values(d)  # raises for a fabric outside its physical range
+        assert d.sloper == design.sloper and d.resolution == design.resolution
