@@ -115,8 +115,12 @@ def with_options(
 def convergence_tail(history: list[tuple[float, float]], k: int = TAIL) -> dict[str, Any]:
     """The last ``k`` residual ratios r_{i+1}/r_i of a level and the order
     estimate log(r_{i+1}/r_i) / log(r_i/r_{i-1}) of its last step (2 for
-    Newton's quadratic convergence, 1 for linear)."""
-    rs = [r for _, r in history if r > 0.0]
+    Newton's quadratic convergence, 1 for linear). A ratio above 1 in the
+    tail is a friction event (a slip or a balance that moved the anchors)."""
+    rs: list[float] = []
+    for _, r in history:
+        if r > 0.0 and (not rs or abs(r - rs[-1]) > 1e-9 * rs[-1]):  # a state recorded twice (a balance, the verdict) once
+            rs.append(r)
     tail = rs[-k - 1 :]
     ratios = [b / a for a, b in zip(tail, tail[1:], strict=False)]
     order = None

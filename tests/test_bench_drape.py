@@ -89,6 +89,8 @@ def test_convergence_tail_reads_the_order_of_a_residual_sequence():
     tail = convergence_tail([(float(i), r) for i, r in enumerate(quad)])
     assert tail["order"] == pytest.approx(2.0, rel=0.05) and len(tail["ratios"]) == 4
     assert tail["ratios"][-1] == pytest.approx(quad[-1] / quad[-2])
+    # the final state recorded twice counts once
+    assert convergence_tail([(0.0, r) for r in quad] + [(9.0, quad[-1])])["ratios"] == tail["ratios"]
     lin = convergence_tail([(float(i), 0.5**i) for i in range(8)])
     assert lin["order"] == pytest.approx(1.0) and all(q == pytest.approx(0.5) for q in lin["ratios"])
 
