@@ -119,7 +119,9 @@ def convergence_tail(history: list[tuple[float, float]], k: int = TAIL) -> dict[
     tail is a friction event (a slip or a balance that moved the anchors)."""
     rs: list[float] = []
     for _, r in history:
-        if r > 0.0 and (not rs or abs(r - rs[-1]) > 1e-9 * rs[-1]):  # a state recorded twice (a balance, the verdict) once
+        if r > 0.0 and (
+            not rs or abs(r - rs[-1]) > 1e-9 * rs[-1]
+        ):  # a state recorded twice (a balance, the verdict) once
             rs.append(r)
     tail = rs[-k - 1 :]
     ratios = [b / a for a, b in zip(tail, tail[1:], strict=False)]

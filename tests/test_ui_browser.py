@@ -78,6 +78,49 @@ def test_sloper_slider_change_publishes_design(session):
     assert changed, d.sloper.params
 
 
+# Before the drags: after the tug and the hem drag, the camera the server holds
+# has lagged the page's by 70 px (see the hem test), and a click placed through it
+# missed the chest (CI: no pick in 3 clicks).
+def test_a_click_on_the_body_picks_a_try_on_target(session):
+    """A click on the mannequin's chest (above the demo sheet) in the 3D view
+    reaches the server as a ray, which picks a point of the body through its
+    ellipsoid proxy: the Try-on folder's drag target and the blue marker."""
+    from couture.ui.geometry import CameraState
+
+    page, ui = session["page"], session["ui"]
+    V = ui.view3d.body_vertices
+    points = []  # the front of the chest, then of the upper chest and the head
+    for height in (0.35, 0.42, 0.62):
+        band = (np.abs(V[:, 1] - height) < 0.02) & (np.abs(V[:, 0]) < 0.05)
+        points.append(V[np.flatnonzero(band)[np.argmax(V[band, 2])]])
+    ui.tryon.set_target(None)
+    tries = []
+    for k in range(6):  # a click while the page is still drawing may be dropped
+        p = points[k % len(points)]
+        cam = CameraState.from_viser(stable_camera(session["c3"], page))
+        px = cam.to_pixels(p[None])[0] + _iframe_origin(page, "#view3d")
+        # hover first and let the page see it (as _drag does): the page casts the
+        # click's ray from the pointer position its last move event gave
+        page.mouse.move(px[0] - 2, px[1])
+        page.wait_for_timeout(150)
+        page.mouse.move(*px)
+        page.wait_for_timeout(250)
+        page.mouse.click(*px)
+        tries.append((round(float(px[0])), round(float(px[1]))))
+        try:
+            wait_until(lambda: ui.tryon.target is not None and ui.view3d.body_marker.visible, 10, page)
+        except TimeoutError:
+            continue
+        break
+    else:
+        pytest.fail(f"no body pick reached the server in {len(tries)} clicks at page pixels {tries}")
+    pick = ui.tryon.target
+    assert pick.region in ("torso", "arm_l", "arm_r", "head")
+    assert ui.view3d.body_marker.visible and "picked the body" in ui.tryon.help.content
+    ui.tryon.set_target(None)
+    ui.view3d.show_body_marker(None)
+
+
 def _drag(page, start, end, steps=8):
     # hover first and let the page see it: a transform handle picks its axis on
     # pointer hover, so a press that comes before the hover is processed (a busy
@@ -205,32 +248,3 @@ def test_adjust_folder_button_and_hem_handle_drag_send_requests(session):
     assert loop == "hem" and amount < -0.005  # up: shorter
     page.screenshot(path=str(ARTIFACTS / "ui_adjust.png"))
     ui.on_adjust = None
-
-
-def test_a_click_on_the_body_picks_a_try_on_target(session):
-    """A click on the mannequin's chest (above the demo sheet) in the 3D view
-    reaches the server as a ray, which picks a point of the body through its
-    ellipsoid proxy: the Try-on folder's drag target and the blue marker."""
-    from couture.ui.geometry import CameraState
-
-    page, ui = session["page"], session["ui"]
-    V = ui.view3d.body_vertices
-    chest = (np.abs(V[:, 1] - 0.35) < 0.02) & (np.abs(V[:, 0]) < 0.05)
-    p = V[np.flatnonzero(chest)[np.argmax(V[chest, 2])]]
-    ui.tryon.set_target(None)
-    for _ in range(3):  # a click while the page is still drawing may be dropped
-        cam = CameraState.from_viser(stable_camera(session["c3"], page))
-        px = cam.to_pixels(p[None])[0] + _iframe_origin(page, "#view3d")
-        page.mouse.click(*px)
-        try:
-            wait_until(lambda: ui.tryon.target is not None and ui.view3d.body_marker.visible, 20, page)
-        except TimeoutError:
-            continue
-        break
-    else:
-        pytest.fail("no body pick reached the server in 3 clicks")
-    pick = ui.tryon.target
-    assert pick.region in ("torso", "arm_l", "arm_r", "head")
-    assert ui.view3d.body_marker.visible and "picked the body" in ui.tryon.help.content
-    ui.tryon.set_target(None)
-    ui.view3d.show_body_marker(None)
