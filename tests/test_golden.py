@@ -310,7 +310,7 @@ def test_a_physics_change_fails_naming_the_worst_vertex(tmp_path):
     """Bending x1.5 in every design (the fabric a designer would change) is a
     different drape: the comparison fails on every fine drape and says where.
     Measured (contact stiffness 100 mu): it moves the fine drapes 2.5-5.2 mm
-    (bound 0.1 mm, both polished), and neither side balances the other's model
+    (bound 0.1 mm when both are polished, up to 3.6 mm when not), and neither side balances the other's model
     (relative residuals 1e-2, against 1e-6 for separate equilibria)."""
     name = BASE
     report = check(load_case(name), actual=tmp_path / f"{name}.mcap", fabric_scale={"bend_stiffness": 1.5})
@@ -319,7 +319,9 @@ def test_a_physics_change_fails_naming_the_worst_vertex(tmp_path):
     assert fine.failures and all(not r.ok for r in fine.drapes), report.text()
     assert "drape/fine generation" in fine.failures[0] and "worst vertex" in fine.failures[0], fine.failures[0]
     assert "mm > bound" in fine.failures[0]
-    assert all(r.deviation_m > 2 * r.bound_m for r in fine.drapes), report.text()
+    # beyond its bound and by millimetres (the bound grows with both sides' residuals,
+    # which follow round-off: a fresh clone's run had 5.2 mm against a 3.6 mm bound)
+    assert all(r.deviation_m > max(r.bound_m, 1e-3) for r in fine.drapes), report.text()
     # a deviation beyond the bound is checked for separate equilibria of the same physics:
     # a changed physics balances neither side's model
     assert all(r.cross_residual is not None and min(r.cross_residual) > 100 * 1e-6 for r in fine.drapes), report.text()
