@@ -38,6 +38,26 @@ class Fabric(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     """Coulomb static coefficient against the body"""
     friction_kinetic: float = 0.3
     """Coulomb kinetic coefficient against the body"""
+    # A woven or knitted fabric's directions (all optional: a fabric that gives
+    # none of them is isotropic, as above). Warp is the grain line
+    # (Panel.grain), weft across it in the fabric's plane.
+    warp_stiffness: float | None = None
+    """[N/m] tensile stiffness along the warp (E1 x thickness); None: stretch_stiffness"""
+    weft_stiffness: float | None = None
+    """[N/m] tensile stiffness along the weft (E2 x thickness); None: stretch_stiffness"""
+    shear_stiffness: float | None = None
+    """[N/m] in-plane shear stiffness (G12 x thickness), what a bias pull meets;
+    None: the isotropic value stretch_stiffness / (2 (1 + poisson_ratio))"""
+    bend_warp: float | None = None
+    """[N m] bending rigidity of a strip cut along the warp (its long axis the
+    warp, as ASTM D1388 cuts it); None: bend_stiffness"""
+    bend_weft: float | None = None
+    """[N m] bending rigidity of a strip cut along the weft; None: bend_stiffness"""
+    bend_bias: float | None = None
+    """[N m] bending rigidity of a strip cut on the bias (45 degrees); None:
+    the mean of bend_warp and bend_weft"""
+    thickness: float | None = None
+    """[m] the fabric's thickness (information; the model is a surface)"""
 
 
 class Sloper(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
@@ -155,6 +175,9 @@ class Design(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     body: Body = msgspec.field(default_factory=Body)
     scene: SceneFlags = msgspec.field(default_factory=SceneFlags)
     resolution: Resolution = msgspec.field(default_factory=Resolution)
+    panel_fabrics: dict[str, Fabric] = {}
+    """panel name -> that panel's own fabric (a waistband, a collar, a lining);
+    a panel not named here is cut from ``fabric``"""
     pieces: list[Piece] = []
     """free-form panels besides the sloper's (an old file without the field
     has none: ``couture/design/v1`` gained it as an optional field)"""

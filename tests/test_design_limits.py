@@ -142,3 +142,16 @@ def test_a_refused_mesh_does_not_count_as_taken():
     assert out.status == "matched" and out.matched is not None
     service.take(out.matched)
     assert service.design is good2 and service.generation == 4
+
+
+@pytest.mark.parametrize(
+    "field,value", [("warp_stiffness", 0.0), ("shear_stiffness", math.nan), ("bend_bias", -1e-6), ("thickness", 1.0)]
+)
+def test_a_panels_own_fabric_is_checked_by_its_path(field, value):
+    """A directional value outside its range, on a panel's own fabric, is
+    refused naming the panel and the field; left out (None) it is not checked."""
+    ok = Fabric(warp_stiffness=None, weft_stiffness=500.0)
+    check_values(Design(panel_fabrics={"front": ok}))
+    bad = Design(panel_fabrics={"front": msgspec.structs.replace(ok, **{field: value})})
+    with pytest.raises(PatternError, match=rf"panel_fabrics\.front\.{field}"):
+        check_values(bad)

@@ -69,6 +69,17 @@ FABRIC_LIMITS: dict[str, Limit] = {
 }
 """Fabric field -> allowed values (see the module docstring for why each bound)"""
 
+DIRECTIONAL_LIMITS: dict[str, Limit] = {
+    "warp_stiffness": Limit(1e-1, 1e6, "N/m", "tensile stiffness along the warp, > 0; wovens 100..10000"),
+    "weft_stiffness": Limit(1e-1, 1e6, "N/m", "tensile stiffness along the weft, > 0; wovens 50..10000"),
+    "shear_stiffness": Limit(1e-2, 1e6, "N/m", "in-plane shear stiffness, > 0; wovens 1..500"),
+    "bend_warp": Limit(0.0, 1.0, "N m", "bending rigidity of a warp strip, >= 0; cloth 1e-8..3e-4"),
+    "bend_weft": Limit(0.0, 1.0, "N m", "bending rigidity of a weft strip, >= 0; cloth 1e-8..3e-4"),
+    "bend_bias": Limit(0.0, 1.0, "N m", "bending rigidity of a bias strip, >= 0; cloth 1e-8..3e-4"),
+    "thickness": Limit(1e-6, 0.05, "m", "the fabric's thickness, > 0; cloth 0.1..5 mm"),
+}
+"""Optional (directional) Fabric field -> allowed values, checked where given"""
+
 RESOLUTION_LIMITS: dict[str, Limit] = {
     "coarse_vertices": Limit(50, 250_000, "vertices", "target size of the coarse mesh; default 1600"),
     "fine_vertices": Limit(50, 250_000, "vertices", "target size of the fine mesh; default 10000"),
@@ -104,6 +115,10 @@ def check_fabric(fabric: Fabric, prefix: str = "fabric") -> None:
     friction at most static; raises PatternError naming ``fabric.<field>``."""
     for name, lim in FABRIC_LIMITS.items():
         _check(f"{prefix}.{name}", _number(f"{prefix}.{name}", getattr(fabric, name)), lim)
+    for name, lim in DIRECTIONAL_LIMITS.items():
+        v = getattr(fabric, name)
+        if v is not None:
+            _check(f"{prefix}.{name}", _number(f"{prefix}.{name}", v), lim)
     if fabric.friction_kinetic > fabric.friction_static:
         raise PatternError(
             f"{prefix}.friction_kinetic",
@@ -121,10 +136,17 @@ def check_resolution(res: Resolution, prefix: str = "resolution") -> None:
         _check(f"{prefix}.{name}", float(v), lim)
 
 
+def check_fabrics(design: Design) -> None:
+    """The design's fabric and every panel's own fabric in range."""
+    check_fabric(design.fabric)
+    for panel, fabric in design.panel_fabrics.items():
+        check_fabric(fabric, f"panel_fabrics.{panel}")
+
+
 def check_values(design: Design) -> None:
     """The design's numbers outside the drafting (fabric, resolution, body)
     in their physical ranges; raises PatternError naming the field."""
-    check_fabric(design.fabric)
+    check_fabrics(design)
     check_resolution(design.resolution)
     check_body(design.body.name)
 
@@ -132,5 +154,5 @@ def check_values(design: Design) -> None:
 def check_simulation_values(design: Design) -> None:
     """What a solver needs of a design (fabric and body), checked before it
     builds a cloth model; raises PatternError naming the field."""
-    check_fabric(design.fabric)
+    check_fabrics(design)
     check_body(design.body.name)
