@@ -56,6 +56,7 @@ def test_bench_drape_writes_finite_figures_and_plots(tmp_path):
         for key in ("residual", "wall_time_s", "steps_per_s", "starts_at_s"):
             assert finite(lv[key]), (key, lv[key])
         assert lv["vertices"] > 0 and lv["iterations"] > 0 and isinstance(lv["converged"], bool)
+        assert lv["solves"] >= lv["iterations"]
         assert lv["history"] and all(finite(t) and finite(r) for t, r in lv["history"])
         la = lv["linear_algebra"]
         assert all(finite(v) for k, v in la.items() if not k.endswith("_from")), la
@@ -110,3 +111,12 @@ def test_fabric_variants_are_the_ends_of_the_allowed_ranges():
     for d in (stiff, soft):
         check_simulation_values(d)  # raises for a fabric outside its physical range
         assert d.sloper == design.sloper and d.resolution == design.resolution
+
+
+def test_an_iteration_is_a_linear_solve_retries_and_continuation_included():
+    """Newton's accepted steps undercount its work: a failed factorization, a
+    shift retried and every step of a dynamics phase are each a solve."""
+    newton = {"factorizations": 14, "factorization_failures": 3, "dynamics_steps": 200}
+    assert bench.linear_solves(12, newton) == 14 + 3 + 200
+    assert bench.linear_solves(12, {"factorizations": 12}) == 12
+    assert bench.linear_solves(500, {"velocity_resets": 7}) == 500  # kinetic: one solve a step
