@@ -776,14 +776,14 @@ def membrane_ortho_gravity_dX_blocks(x, tris, Dminv, area, C, membrane, rho_g3, 
 
 
 @njit(cache=True, inline="always")
-def _hinge_stiffness(X, st, e, kdir, warp, d0x, d0y, d1x, d1y):
+def _hinge_stiffness(X, st, e, law, warp, d0x, d0y, d1x, d1y):
     """(k, dk): stencil e's bending stiffness [N m] and its derivative along
     the rest motion (d0x, d0y), (d1x, d1y) of its hinge's two vertices.
 
-    k = k_w c² + k_f s² + k_x c² s² with kdir[e] = (k_w, k_f, k_x), c = cos θ,
-    s = sin θ, θ the angle between the strip axis (the hinge's in-plane
-    normal) and the warp warp[e] (unit, material space): s² = (t·w)² with t
-    the hinge's unit tangent."""
+    k = (p0 + p1 u + p2 u²) / (q0 + q1 u + q2 u²), law[e] = (p0, p1, p2, q0,
+    q1, q2) (``couture.cloth.material.hinge_law``), u = sin²θ = (t·w)², θ the
+    angle between the strip axis (the hinge's in-plane normal) and the warp
+    warp[e] (unit, material space), t the hinge's unit tangent."""
     i0, i1 = st[e, 0], st[e, 1]
     ex = X[i1, 0] - X[i0, 0]
     ey = X[i1, 1] - X[i0, 1]
@@ -792,20 +792,23 @@ def _hinge_stiffness(X, st, e, kdir, warp, d0x, d0y, d1x, d1y):
     wx, wy = warp[e, 0], warp[e, 1]
     tw = tx * wx + ty * wy
     u = tw * tw
-    kw, kf, kx = kdir[e, 0], kdir[e, 1], kdir[e, 2]
-    k = kw * (1.0 - u) + kf * u + kx * u * (1.0 - u)
+    num = law[e, 0] + u * (law[e, 1] + u * law[e, 2])
+    den = law[e, 3] + u * (law[e, 4] + u * law[e, 5])
+    k = num / den
     dex, dey = d1x - d0x, d1y - d0y
     tde = tx * dex + ty * dey
     dtw = ((dex - tx * tde) * wx + (dey - ty * tde) * wy) / le
     du = 2.0 * tw * dtw
-    return k, (kf - kw + kx * (1.0 - 2.0 * u)) * du
+    dnum = law[e, 1] + 2.0 * u * law[e, 2]
+    dden = law[e, 4] + 2.0 * u * law[e, 5]
+    return k, (dnum - k * dden) / den * du
 
 
 @njit(cache=True)
-def hinge_stiffness(X, st, kdir, warp, out):
+def hinge_stiffness(X, st, law, warp, out):
     """out (e,) = every stencil's bending stiffness [N m] (``_hinge_stiffness``)."""
     for e in range(st.shape[0]):
-        out[e] = _hinge_stiffness(X, st, e, kdir, warp, 0.0, 0.0, 0.0, 0.0)[0]
+        out[e] = _hinge_stiffness(X, st, e, law, warp, 0.0, 0.0, 0.0, 0.0)[0]
 
 
 @njit(cache=True, inline="always")
@@ -822,7 +825,7 @@ def _bending_var_dforce(x, st, e, coef0, dcoef, fac, dfac, w, dw, dP):
 
 
 @njit(cache=True)
-def bending_var_dforces_dX(x, X, dX, st, kdir, warp, bend_constant, df):
+def bending_var_dforces_dX(x, X, dX, st, law, warp, bend_constant, df):
     """``bending_dforces_dX`` for per-hinge stiffness k_e (``_hinge_stiffness``):
     f = -Σ_e c k_e fac_e K_e (K_e·x), c = ``bend_constant``; k_e depends on X
     through the hinge's direction, differentiated with K and fac."""
@@ -834,7 +837,7 @@ def bending_var_dforces_dX(x, X, dX, st, kdir, warp, bend_constant, df):
         fac, dfac = bending_stencil_weights_dir(
             X, st, e, dX[i0, 0], dX[i0, 1], dX[i1, 0], dX[i1, 1], dX[i2, 0], dX[i2, 1], dX[i3, 0], dX[i3, 1], w, dw
         )
-        k, dk = _hinge_stiffness(X, st, e, kdir, warp, dX[i0, 0], dX[i0, 1], dX[i1, 0], dX[i1, 1])
+        k, dk = _hinge_stiffness(X, st, e, law, warp, dX[i0, 0], dX[i0, 1], dX[i1, 0], dX[i1, 1])
         _bending_var_dforce(x, st, e, bend_constant * k, bend_constant * dk, fac, dfac, w, dw, dP)
         for c in range(3):
             for a in range(4):
@@ -842,7 +845,7 @@ def bending_var_dforces_dX(x, X, dX, st, kdir, warp, bend_constant, df):
 
 
 @njit(cache=True)
-def bending_var_dX_blocks(x, X, st, kdir, warp, bend_constant, bend_slots, data):
+def bending_var_dX_blocks(x, X, st, law, warp, bend_constant, bend_slots, data):
     """``bending_dX_blocks`` for per-hinge stiffness (``bending_var_dforces_dX``)."""
     w = np.empty(4)
     dw = np.empty(4)
@@ -854,7 +857,7 @@ def bending_var_dX_blocks(x, X, st, kdir, warp, bend_constant, bend_slots, data)
                 d[:] = 0.0
                 d[2 * q + k] = 1.0
                 fac, dfac = bending_stencil_weights_dir(X, st, e, d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], w, dw)
-                kh, dk = _hinge_stiffness(X, st, e, kdir, warp, d[0], d[1], d[2], d[3])
+                kh, dk = _hinge_stiffness(X, st, e, law, warp, d[0], d[1], d[2], d[3])
                 _bending_var_dforce(x, st, e, bend_constant * kh, bend_constant * dk, fac, dfac, w, dw, dP)
                 for a in range(4):
                     slot = bend_slots[e, a, q]

@@ -21,8 +21,8 @@ orthotropic fabric (warp, weft, shear stiffness) or panels of different
 membranes get psi = ½ vᵀ C_t v, v = (G_xx, G_yy, 2 G_xy), with each
 triangle's plane-stress orthotropic C_t turned to its panel's grain (term
 'membrane_orthotropic'); directional or per-panel bending gives each hinge
-its own k_b (k(θ) of the hinge's direction to the warp) in the bending
-energy below. An isotropic fabric keeps the membrane above and one k_b.
+its own k_b (k(θ) of the hinge's direction to the warp, so that a strip cut
+along warp, weft or bias bends with that rigidity) in the bending energy below. An isotropic fabric keeps the membrane above and one k_b.
 
 Bending (Bergou et al. 2006, isometric bending model): per interior edge
 stencil (x0, x1 on the edge, x2, x3 opposite) a weight vector K (4,) that
@@ -338,7 +338,7 @@ class ClothModel:
         self.bend_stencils, bend_tris = bending_stencils_and_triangles(self.tris)
         if self.bend_directional:
             self.bend_dir, self.bend_warp = self.material.bending(bend_tris)
-            """(e, 3) (k_w, k_f, 4 k_b - 2 k_w - 2 k_f) [N m] and (e, 2) unit warp of
+            """(e, 6) hinge law (``material.hinge_law``) and (e, 2) unit warp of
             every hinge (``kernels.hinge_stiffness``)"""
         if self.has_seams:
             self.seam_stencils = np.column_stack([mesh.seam_emitters, mesh.seam_edges]).astype(np.int32)
