@@ -459,3 +459,35 @@ def test_a_denim_skirt_drapes_and_its_bias_cut_hangs_differently():
     apart = np.linalg.norm(drapes["straight"] - drapes["bias"], axis=1)
     assert apart.mean() > 0.01, apart.mean()
     assert shear["straight"] > 2.5 * shear["bias"], shear
+
+
+def test_an_old_design_file_loads_isotropic_and_a_panel_fabric_reaches_the_solver_model():
+    """A couture/design/v1 file from before the woven fields decodes with them
+    None (no panel fabrics) and drapes on today's isotropic membrane; the
+    solver service builds its models with the design's panel fabrics and
+    rebuilds them when those change or a mesh turns a panel's grain."""
+    from couture.pattern.io import design_from_json
+    from couture.solvers.service import SolveService, scene_from_design
+    from schemas.design import Design, SceneFlags
+
+    old = (
+        b'{"schema": "couture/design/v1", "design": {"sloper": {"kind": "skirt"}, "fabric": {"name": "cotton", '
+        b'"stretch_stiffness": 200.0, "poisson_ratio": 0.3, "bend_stiffness": 5e-6, "area_density": 0.15}}}'
+    )
+    design = design_from_json(old)
+    assert design.panel_fabrics == {} and design.fabric.warp_stiffness is None and design.fabric.bend_bias is None
+    mesh = two_panels()
+    assert ClothModel(mesh, design.fabric, scene_from_design(design)).terms[0] == "membrane"
+
+    flat = SceneFlags(body=False, friction=False)
+    service = SolveService(method="newton")
+    service.set_design(Design(fabric=ISO, scene=flat))
+    service.set_mesh("coarse", mesh, 1)
+    assert service.levels["coarse"].model.terms[0] == "membrane"
+    assert service.set_design(Design(fabric=ISO, scene=flat, panel_fabrics={"a": DENIM}))
+    model = service.levels["coarse"].model
+    assert model.terms[0] == "membrane_orthotropic" and model.material.fabrics[1] is DENIM
+    turned = GarmentMesh(**{**mesh.__dict__, "panel_grain": np.array([1.0, -0.7])})
+    service.set_mesh("coarse", turned, 2)
+    assert service.levels["coarse"].model is not model
+    assert service.levels["coarse"].model.mesh.panel_grain[0] == 1.0
