@@ -491,3 +491,26 @@ def test_an_old_design_file_loads_isotropic_and_a_panel_fabric_reaches_the_solve
     service.set_mesh("coarse", turned, 2)
     assert service.levels["coarse"].model is not model
     assert service.levels["coarse"].model.mesh.panel_grain[0] == 1.0
+
+
+def test_the_solver_service_refuses_a_fabric_it_cannot_build_keeping_its_design():
+    """A panel fabric whose membrane is not positive definite, or one for a
+    panel the mesh lacks, is a PatternError naming the field; the service
+    keeps the design and models it had."""
+    from couture.pattern.errors import PatternError
+    from couture.solvers.service import SolveService, check_materials
+    from schemas.design import Design, SceneFlags
+
+    flat = SceneFlags(body=False, friction=False)
+    service = SolveService(method="newton")
+    good = Design(fabric=ISO, scene=flat)
+    service.set_design(good)
+    service.set_mesh("coarse", two_panels(), 1)
+    model = service.levels["coarse"].model
+    bad = Design(fabric=ISO, scene=flat, panel_fabrics={"a": msgspec.structs.replace(DENIM, poisson_ratio=1.5)})
+    with pytest.raises(PatternError, match=r"panel_fabrics\.a\.poisson_ratio") as err:
+        service.set_design(bad)
+    assert err.value.element == "panel_fabrics.a.poisson_ratio"
+    assert service.design is good and service.levels["coarse"].model is model
+    with pytest.raises(PatternError, match=r"panel_fabrics\.sleeve.*no panel 'sleeve'"):
+        check_materials(Design(panel_fabrics={"sleeve": DENIM}), two_panels())

@@ -261,6 +261,21 @@ def effective_strip_rigidity(kw: float, kf: float, kb: float, beta) -> np.ndarra
     return a0 + f2 * a2 * np.cos(2.0 * np.asarray(beta)) + f4 * a4 * np.cos(4.0 * np.asarray(beta))
 
 
+def check_fabric(fabric, prefix: str = "fabric") -> None:
+    """What the model needs of a fabric beyond its ranges
+    (``couture.pattern.limits``): a positive definite membrane and a hinge
+    law; raises FabricError naming the field."""
+    orthotropic_elasticity(fabric, prefix)
+    hinge_law(*bend_rigidities(fabric), field=f"{prefix}.bend_bias")
+
+
+def check_panel_names(panel_fabrics: dict, panel_names: list[str]) -> None:
+    """Every panel a fabric is given to is a panel of the mesh; raises FabricError."""
+    for name in panel_fabrics:
+        if name not in panel_names:
+            raise FabricError(f"panel_fabrics.{name}", f"no panel {name!r} in the mesh; panels are {panel_names}")
+
+
 @dataclass
 class GarmentMaterial:
     """Material constants of a garment mesh (``resolve``)."""
@@ -324,9 +339,7 @@ def resolve(mesh: GarmentMesh, fabric, panel_fabrics: dict | None = None) -> Gar
     FabricError for a panel_fabrics name the mesh has no panel of."""
     panel_fabrics = dict(panel_fabrics or {})
     names = list(mesh.panel_names)
-    for name in panel_fabrics:
-        if name not in names:
-            raise FabricError(f"panel_fabrics.{name}", f"no panel {name!r} in the mesh; panels are {names}")
+    check_panel_names(panel_fabrics, names)
     fabrics = [fabric]
     paths = ["fabric"]
     panel_fab = np.zeros(mesh.n_panels, np.int64)

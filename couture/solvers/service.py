@@ -45,7 +45,7 @@ from typing import Callable
 
 import numpy as np
 
-from couture.cloth.material import reference_lame
+from couture.cloth.material import FabricError, check_fabric, check_panel_names, reference_lame
 from couture.cloth.model import CONTACT_STIFFNESS_PER_MU, SEAM_STIFFNESS_PER_MU, ClothModel, Scene
 from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome, Verdict, judge
 from couture.mesh import GarmentMesh
@@ -114,6 +114,21 @@ def scene_from_design(design: Design) -> Scene:
         friction_model=flags.friction_model,
         panel_fabrics=dict(design.panel_fabrics),
     )
+
+
+def check_materials(design: Design, mesh: GarmentMesh | None = None) -> None:
+    """The cloth model can be built of the design's fabrics (positive definite
+    membrane, positive bending hinges: ``couture.cloth.material.check_fabric``)
+    and, given the mesh, every panel named in ``panel_fabrics`` is one of its
+    panels; raises PatternError naming the field (``panel_fabrics.<panel>.<field>``)."""
+    try:
+        check_fabric(design.fabric)
+        for name, fabric in design.panel_fabrics.items():
+            check_fabric(fabric, f"panel_fabrics.{name}")
+        if mesh is not None:
+            check_panel_names(design.panel_fabrics, list(mesh.panel_names))
+    except FabricError as e:
+        raise PatternError(e.field, str(e)) from None
 
 
 def same_vertices(a: GarmentMesh, b: GarmentMesh) -> bool:
@@ -227,6 +242,7 @@ class SolveService:
         this solver cannot simulate."""
         m = matched.mesh
         try:
+            check_materials(matched.design, m.payload.mesh)
             self.set_design(matched.design)
         except PatternError:
             self.matcher.refuse(m)
@@ -241,6 +257,7 @@ class SolveService:
         Raises PatternError naming the field (``fabric.area_density``, ...)
         for a fabric outside its physical range, keeping the current design."""
         check_simulation_values(design)
+        check_materials(design)
         changed = (
             self.design is None
             or design.fabric != self.design.fabric
