@@ -511,7 +511,7 @@ def test_the_solver_service_refuses_a_fabric_it_cannot_build_keeping_its_design(
     bad = Design(fabric=ISO, scene=flat, panel_fabrics={"a": msgspec.structs.replace(DENIM, poisson_ratio=1.5)})
     with pytest.raises(PatternError, match=r"panel_fabrics\.a\.poisson_ratio") as err:
         service.set_design(bad)
-    assert err.value.element == "panel_fabrics.a.poisson_ratio"
+    assert err.value.element == "panel_fabrics.a.poisson_ratio" and str(err.value).count("poisson_ratio") == 1
     assert service.design is good and service.levels["coarse"].model is model
     with pytest.raises(PatternError, match=r"panel_fabrics\.sleeve.*no panel 'sleeve'"):
         check_materials(Design(panel_fabrics={"sleeve": DENIM}), two_panels())

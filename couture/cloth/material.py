@@ -83,6 +83,7 @@ class FabricError(ValueError):
 
     def __init__(self, field: str, message: str):
         self.field = field
+        self.message = message
         super().__init__(f"{field}: {message}")
 
 
@@ -141,6 +142,8 @@ def orthotropic_elasticity(fabric, prefix: str = "fabric") -> np.ndarray:
     raises FabricError naming the field when C is not positive definite."""
     E1, E2, nu12, G = tensile_constants(fabric)
     for name, v in (("warp_stiffness", E1), ("weft_stiffness", E2), ("shear_stiffness", G)):
+        if _get(fabric, name) is None:
+            name = "stretch_stiffness"  # the default it stands for
         if not (np.isfinite(v) and v > 0):
             raise FabricError(f"{prefix}.{name}", f"{v!r} N/m: the membrane needs a positive finite stiffness")
     nu21 = nu12 * E2 / E1
