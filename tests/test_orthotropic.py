@@ -412,6 +412,37 @@ def test_the_remesher_puts_each_panels_grain_on_the_mesh():
     assert all(g == 0.0 for name, g in grains.items() if name != "patch") and len(grains) > 1
 
 
+def test_a_grain_stroke_cuts_a_sloper_panel_on_the_bias():
+    """A designer turns a sloper panel's grain with a 'grain' stroke: the
+    drafted panel, its mesh and its cutting layout's grain line follow; a bad
+    stroke is refused naming it."""
+    from couture.pattern import PatternError
+    from couture.pattern.cutting import cut_pieces
+    from couture.pattern.validate import validate
+    from couture.remesh.meshing import mesh_pattern
+    from schemas.design import Design, Sloper, Stroke
+
+    bias = Stroke(id="bias-gore0", kind="grain", panel="gore0", params={"angle": math.pi / 4})
+    drafted = validate(Design(sloper=Sloper(kind="skirt"), strokes=[bias]))
+    grains = {p.name: p.grain for p in drafted.panels}
+    assert grains["gore0"] == pytest.approx(math.pi / 4) and grains["gore1"] == 0.0
+    mesh = mesh_pattern(drafted, 300, level="coarse").mesh
+    assert dict(zip(mesh.panel_names, mesh.panel_grain, strict=True))["gore0"] == pytest.approx(math.pi / 4)
+    front = next(c for c in cut_pieces(drafted) if c.panel.name == "gore0")
+    tail, head = front.grain
+    d = (head - tail) / np.linalg.norm(head - tail)
+    assert abs(abs(d[0]) - abs(d[1])) < 1e-9  # the arrow runs at 45 degrees
+    for stroke, why in (
+        (msgspec.structs.replace(bias, panel="sleeve"), "no panel"),
+        (msgspec.structs.replace(bias, params={"angle": 9.0}), "outside"),
+        (msgspec.structs.replace(bias, params={}), "missing"),
+    ):
+        with pytest.raises(PatternError, match=why):
+            validate(Design(sloper=Sloper(kind="skirt"), strokes=[stroke]))
+    with pytest.raises(PatternError, match="already has a grain"):
+        validate(Design(sloper=Sloper(kind="skirt"), strokes=[bias, msgspec.structs.replace(bias, id="again")]))
+
+
 # ---------------------------------------------------------------- the running system
 
 
@@ -432,18 +463,19 @@ def test_a_denim_skirt_drapes_and_its_bias_cut_hangs_differently():
     those axes are the stiff warp and weft (shear there is E45 ≈ 190 N/m
     away), so the material-axis shear strain drops (measured here: 120 and
     167 Newton iterations, about 2 s each; mean |G_xy| 0.016 against 0.003;
-    vertices 49 mm apart on average)."""
+    vertices 49 mm apart on average). The bias is cut as a designer cuts it:
+    a 'grain' stroke on every gore."""
     from couture.pattern.validate import validate
     from couture.remesh.meshing import mesh_pattern
     from couture.solvers.service import SolveService
-    from schemas.design import Design, Sloper
+    from schemas.design import Design, Sloper, Stroke
 
-    design = Design(sloper=Sloper(kind="skirt"), fabric=DENIM)
-    drafted = validate(design)
+    straight = Design(sloper=Sloper(kind="skirt"), fabric=DENIM)
+    gores = [p.name for p in validate(straight).panels]
+    cut = [Stroke(id=f"bias-{g}", kind="grain", panel=g, params={"angle": math.pi / 4}) for g in gores]
     drapes, shear = {}, {}
-    for name, grain in (("straight", 0.0), ("bias", math.pi / 4)):
-        mesh = mesh_pattern(drafted, 400, level="coarse").mesh
-        mesh.panel_grain = np.full(mesh.n_panels, grain)
+    for name, design in (("straight", straight), ("bias", msgspec.structs.replace(straight, strokes=cut))):
+        mesh = mesh_pattern(validate(design), 400, level="coarse").mesh
         service = SolveService(method="newton", max_seconds={"coarse": 40.0, "fine": 40.0})
         service.set_design(design)
         service.set_mesh("coarse", mesh, 1)

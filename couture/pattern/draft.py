@@ -55,7 +55,7 @@ SPACING = 0.01
 """[m] target polyline spacing at default size"""
 DART_LEG_SAMPLES = 8
 HOLE_SAMPLES = 24
-STROKE_KINDS = ("curve", "dart", "hole", "seam", "symmetry")
+STROKE_KINDS = ("curve", "dart", "grain", "hole", "seam", "symmetry")
 
 
 # ------------------------------------------------------------------ segments
@@ -421,6 +421,20 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
             if found is None:
                 raise PatternError(st.id, f"no panel named {st.panel!r}")
             panels[found] = _mirror(panels[found], st)
+
+    # grain: a panel cut on the bias (or any angle); the warp runs at ``angle``
+    # [rad] from the panel's material +y, counter-clockwise (Panel.grain)
+    grained: set[str] = set()
+    for st in design.strokes:
+        if st.kind != "grain":
+            continue
+        found = next((p for p in panels if p.name == st.panel), None)
+        if found is None:
+            raise PatternError(st.id, f"grain stroke on {st.panel!r}: no panel of that name")
+        if st.panel in grained:
+            raise PatternError(st.id, f"panel {st.panel!r} already has a grain stroke")
+        grained.add(st.panel)
+        found.grain = _num(st.id, st.params, "angle", -math.pi, math.pi)
 
     # seams
     seams: list[SeamSpec] = []
