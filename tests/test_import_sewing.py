@@ -131,12 +131,13 @@ def test_teagan_is_a_top():
     design, rep = build_design(pieces)
     assert rep.landmark == "shoulder"
     assert {p.name for p in design.pieces} == {"front", "back", "sleeve_left", "sleeve_right"}
-    # the sleeves are not in the torso ring (placed flat until sleeve placement exists)
-    flat = {p.name for p in design.pieces if p.placement.ring == "flat"}
-    assert flat == {"sleeve_left", "sleeve_right"}
-    # shoulder and side seams front-to-back
+    # the sleeves are not in the torso ring: each round its arm (tests/test_import_place.py)
+    rings = {p.name: p.placement.ring for p in design.pieces}
+    assert rings == {"front": "torso", "back": "torso", "sleeve_left": "left_arm", "sleeve_right": "right_arm"}
+    # side seams front-to-back, and the shoulders
     fb = [s for s in rep.seams if "front and back" in s.reason]
-    assert len(fb) >= 2
+    assert len(fb) == 2
+    assert sum("shoulders" in s.reason for s in rep.seams) == 2
     assert all(math.isfinite(s.confidence) and 0 <= s.confidence <= 1 for s in rep.seams)
 
 
@@ -204,6 +205,9 @@ def test_every_fixture_gives_a_design_file(file):
 
 def test_sleeves_close_into_tubes_not_onto_each_other():
     design, rep = build_design(read_pattern(FS / "teagan_cisFemaleAdult34.svg"))
-    sleeve = [s for s in rep.seams if "sleeve" in s.a_panel or "sleeve" in s.b_panel]
+    sleeve = [s for s in rep.seams if s.a_panel.startswith("sleeve") and s.b_panel.startswith("sleeve")]
     assert len(sleeve) == 2
     assert all(s.a_panel == s.b_panel and "tube" in s.reason for s in sleeve)
+    # the rest of the sleeves' seams set their caps into the bodice's armholes
+    caps = [s for s in rep.seams if (s.a_panel + s.b_panel).count("sleeve") == 1]
+    assert len(caps) == 4 and all("sleeve cap" in s.reason for s in caps)

@@ -89,6 +89,13 @@ class _Panel:
     """the other panel of a mirrored pair"""
     grain: float = 0.0
     source: str = ""
+    leg: str = ""
+    """'left' or 'right': a trouser leg's front or back panel, on that leg; '' not a leg"""
+    crotch: int = -1
+    """a leg panel's crotch point: the index in ``corners`` where its crotch
+    curve (above) meets its inseam (below); -1 not a leg"""
+    arm: str = ""
+    """'left' or 'right': a sleeve set into that armhole; '' not set in"""
 
 
 def role_of(name: str) -> str:
@@ -227,6 +234,47 @@ def _unfold(P: np.ndarray, at_min_x: bool) -> np.ndarray | None:
     return whole if signed_area(whole) > 0 else whole[::-1].copy()
 
 
+LEG_SLENDER = 1.5
+"""a trouser leg panel is at least this many times as tall as it is wide"""
+CROTCH_DEPTH = (0.1, 0.6)
+"""a trouser leg panel's crotch point lies this fraction of its height below its top"""
+CROTCH_REACH = 0.2
+"""a trouser leg panel's crotch point juts out past its waist's end on that side by at least
+this fraction of its width (FreeSewing titan: 0.36 front, 0.48 back; penelope's vent: 0.14)"""
+
+
+def crotch_side(P: np.ndarray, name: str) -> str:
+    """'min' or 'max': the side (of material x) where a trouser leg's front or
+    back piece has its crotch point, a corner at the piece's widest reach,
+    between ``CROTCH_DEPTH`` of its height below the top, jutting out past the
+    waist by ``CROTCH_REACH`` of its width, with the inseam running on down
+    from it to the hem; '' when the piece is no trouser leg
+    (a skirt's hip curve has no corner there, a vent's corner is low, a
+    bodice is not slender enough)."""
+    if role_of(name) not in ("front", "back"):
+        return ""
+    H, W = float(np.ptp(P[:, 1])), float(np.ptp(P[:, 0]))
+    if H < LEG_SLENDER * W:
+        return ""
+    corners = find_corners(P)
+    top, bottom = float(P[:, 1].max()), float(P[:, 1].min())
+    for side, i in (("max", int(np.argmax(P[:, 0]))), ("min", int(np.argmin(P[:, 0])))):
+        depth = (top - P[i, 1]) / H
+        near = min(corners, key=lambda c: float(np.linalg.norm(P[c] - P[i])))
+        if not (CROTCH_DEPTH[0] <= depth <= CROTCH_DEPTH[1]) or np.linalg.norm(P[near] - P[i]) > 0.01:
+            continue
+        # the crotch reaches well past the waist's end on that side (a skirt's vent juts out a few cm)
+        upper = P[P[:, 1] >= top - 0.05 * H, 0]
+        reach = P[i, 0] - upper.max() if side == "max" else upper.min() - P[i, 0]
+        if reach < CROTCH_REACH * W:
+            continue
+        # the outline below the crotch point on its side reaches the hem: the inseam
+        beyond = P[:, 0] >= P[i, 0] - 0.5 * W if side == "max" else P[:, 0] <= P[i, 0] + 0.5 * W
+        if float(P[beyond, 1].min()) <= bottom + 0.05 * H:
+            return side
+    return ""
+
+
 def _mirror(P: np.ndarray) -> np.ndarray:
     Q = P[::-1].copy()
     Q[:, 0] = -Q[:, 0]
@@ -242,7 +290,9 @@ def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Pa
     out: list[_Panel] = []
     for pc in pieces:
         P = pc.sew
-        center_min = centre_at_min_x(pc)
+        crotch = "" if pc.on_fold else crotch_side(P, pc.name)
+        # a trouser leg's centre edge is its crotch side (its outseam may be the straighter one)
+        center_min = crotch == "min" if crotch else centre_at_min_x(pc)
         if pc.on_fold:
             band = np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and role_of(pc.name) in ("waistband", "binding", "")
             W = None
@@ -286,7 +336,36 @@ def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Pa
             )
         if len(copies) == 2:
             out[-2].twin, out[-1].twin = out[-1].name, out[-2].name
+        if crotch:
+            for p in out[-len(copies) :]:
+                _mark_leg(p)
     return out
+
+
+def _mark_leg(p: _Panel) -> None:
+    """Sets a trouser leg panel's leg and crotch corner. Material x runs with
+    the leg ring's angle (front, outer side, back, inner side: the left leg's
+    front goes from its crotch to its outseam, the right leg's toward its
+    crotch), so a front with its crotch at min x is on the left leg, a back
+    with its crotch at max x too."""
+    side = crotch_side(p.outline, p.role)
+    if not side:
+        return
+    i = int(np.argmax(p.outline[:, 0]) if side == "max" else np.argmin(p.outline[:, 0]))
+    k = min(range(len(p.corners)), key=lambda j: float(np.linalg.norm(p.outline[p.corners[j]] - p.outline[i])))
+    p.crotch = k
+    p.leg = "left" if (side == "min") == (p.role == "front") else "right"
+
+
+def _leg_parts(p: _Panel) -> tuple[str, str]:
+    """(crotch curve, inseam): the names of a leg panel's segments above and
+    below its crotch point."""
+    n = len(p.corners)
+    before, after = f"e{(p.crotch - 1) % n}", f"e{p.crotch}"
+    segs = {g.name: g for g in _segments(p)}
+    # the inseam runs down to the hem: its far end is the lower one
+    low_after = segs[after].pts[-1][1] < segs[before].pts[0][1]
+    return (before, after) if low_after else (after, before)
 
 
 # ------------------------------------------------------------------ seams
@@ -334,12 +413,143 @@ def _centre_facing(p: _Panel) -> str:
     return ("right" if at_back else "left") if p.side == "left" else ("left" if at_back else "right")
 
 
+SLEEVE_EASE = 0.12
+"""a sleeve cap may be this fraction longer than its armhole (or 1 cm shorter) to be set into it"""
+
+
+def _shoulders(p: _Panel, S: list[_Seg]) -> dict[str, tuple[int, int]]:
+    """A bodice panel's shoulder seams and the armholes below them: {'right' |
+    'left': (shoulder index, armhole index) in ``S``}. A shoulder is a top
+    edge sloping down to the panel's side, where the side's topmost edge (the
+    armhole) meets it: on the right, the armhole runs up into it (counter-
+    clockwise order), on the left down out of it."""
+    out: dict[str, tuple[int, int]] = {}
+    n = len(S)
+    cx = 0.5 * (p.outline[:, 0].min() + p.outline[:, 0].max())
+    for i, g in enumerate(S):
+        if g.facing != "top" or n < 4:
+            continue
+        if S[i - 1].facing == "right" and g.pts[0][0] > cx and g.pts[0][1] < g.pts[-1][1]:
+            out["right"] = (i, (i - 1) % n)
+        if S[(i + 1) % n].facing == "left" and g.pts[-1][0] < cx and g.pts[-1][1] < g.pts[0][1]:
+            out["left"] = (i, (i + 1) % n)
+    return out
+
+
+def _split(p: _Panel, seg: int, at: float) -> None:
+    """Splits segment ``seg`` of ``p`` at arc length ``at`` [m] from its start:
+    a corner (and an outline vertex) there; the later segments' names shift by one."""
+    k = len(p.outline)
+    c, d = p.corners[seg], p.corners[(seg + 1) % len(p.corners)]
+    idx = (c + np.arange((d - c) % k + 1)) % k
+    Q = p.outline[idx]
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(Q, axis=0), axis=1))])
+    j = int(np.clip(np.searchsorted(s, at, side="right") - 1, 0, len(Q) - 2))
+    t = (at - s[j]) / max(s[j + 1] - s[j], 1e-300)
+    q = (1 - t) * Q[j] + t * Q[j + 1]
+    after = int(idx[j]) + 1  # the new vertex's index, after outline vertex idx[j]
+    p.outline = np.insert(p.outline, after, q, axis=0)
+    corners = [ci + 1 if ci >= after else ci for ci in p.corners]
+    p.corners = sorted(corners + [after])
+
+
+def _set_in_sleeves(panels: list[_Panel], used: set[tuple[str, str]], tolerance: float) -> list[Suggestion]:
+    """A top's shoulder seams (a front's right shoulder with a back's left one,
+    the body's left, and the other way round) and its sleeves set into the
+    armholes: each sleeve's cap (its top edge between the underarm seams) is
+    split where its front part is as long as the front armhole's share of
+    the whole armhole, the part on the front side of the arm
+    (:func:`couture.pattern.pieces.arm_front_at_plus_x`) sewn to the front's
+    armhole, the other to the back's. Marks the sleeves' ``arm``; adds the
+    segments sewn to ``used``."""
+    from couture.pattern.pieces import arm_front_at_plus_x
+
+    out: list[Suggestion] = []
+    body = [p for p in panels if p.role in ("front", "back") and not p.leg]
+    segs = {p.name: _segments(p) for p in body}
+    sh = {p.name: _shoulders(p, segs[p.name]) for p in body}
+    armholes: dict[str, dict[str, _Seg]] = {}
+    for pa in body:
+        for pb in body:
+            if pa.role == pb.role or "right" not in sh[pa.name] or "left" not in sh[pb.name]:
+                continue
+            a = segs[pa.name][sh[pa.name]["right"][0]]
+            b = segs[pb.name][sh[pb.name]["left"][0]]
+            if (a.panel, a.name) in used or (b.panel, b.name) in used:
+                continue
+            if abs(a.length - b.length) > max(0.005, tolerance * max(a.length, b.length)):
+                continue
+            conf = 0.7 + 0.3 * (1 - abs(a.length - b.length) / max(0.005, tolerance * max(a.length, b.length)))
+            out.append(
+                Suggestion(
+                    a.panel,
+                    a.name,
+                    b.panel,
+                    b.name,
+                    round(conf, 3),
+                    "shoulders of a front and a back",
+                    a.length,
+                    b.length,
+                )
+            )
+            used.update({(a.panel, a.name), (b.panel, b.name)})
+            # the front's right side and the back's left are the body's left (material x grows toward it)
+            arm = "left" if pa.role == "front" else "right"
+            armholes[arm] = {
+                pa.role: segs[pa.name][sh[pa.name]["right"][1]],
+                pb.role: segs[pb.name][sh[pb.name]["left"][1]],
+            }
+    sleeves = [p for p in panels if p.role == "sleeve"]
+    free_arms: list[str] = [a for a in ("left", "right") if a in armholes]
+    for sl in sorted(sleeves, key=lambda p: p.side != "left"):
+        arm = sl.side if sl.side in free_arms else (free_arms[0] if free_arms and not sl.side else "")
+        if not arm:
+            continue
+        S = _segments(sl)
+        tops = [i for i, g in enumerate(S) if g.facing == "top"]
+        if not tops or tops != list(range(tops[0], tops[0] + len(tops))) or len(tops) > 2:
+            continue
+        front, back = armholes[arm]["front"], armholes[arm]["back"]
+        if any(h in used for h in ((front.panel, front.name), (back.panel, back.name))):
+            continue
+        cap = sum(S[i].length for i in tops)
+        hole = front.length + back.length
+        if not (hole - 0.01 <= cap <= (1 + SLEEVE_EASE) * hole):
+            continue
+        plus_front = arm_front_at_plus_x(arm)
+        if len(tops) == 1:  # the cap in one piece: split it in the armholes' proportion, from its +x end
+            first = front if plus_front else back
+            _split(sl, tops[0], cap * first.length / hole)
+            S = _segments(sl)
+            tops = [tops[0], tops[0] + 1]
+        parts = (S[tops[0]], S[tops[1]])  # counter-clockwise: the +x part first
+        pairs = ((parts[0], front), (parts[1], back)) if plus_front else ((parts[0], back), (parts[1], front))
+        for c, h in pairs:
+            ease = c.length / h.length - 1
+            out.append(
+                Suggestion(
+                    c.panel,
+                    c.name,
+                    h.panel,
+                    h.name,
+                    round(float(np.clip(0.9 - 2 * abs(ease), 0.5, 0.9)), 3),
+                    f"sleeve cap into the {h.panel} armhole ({ease * 100:+.0f} % ease)",
+                    c.length,
+                    h.length,
+                )
+            )
+            used.update({(c.panel, c.name), (h.panel, h.name)})
+        sl.arm = arm
+        free_arms.remove(arm)
+    return out
+
+
 def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> list[Suggestion]:
     """Seams the importer would sew (module docstring), best first."""
+    used: set[tuple[str, str]] = set()
+    out: list[Suggestion] = _set_in_sleeves(panels, used, tolerance)
     segs = {p.name: _segments(p) for p in panels}
     by = {p.name: p for p in panels}
-    used: set[tuple[str, str]] = set()
-    out: list[Suggestion] = []
     # darts: consecutive legs of equal length meeting in a sharp V that points into the panel
     for p in panels:
         S = segs[p.name]
@@ -365,6 +575,7 @@ def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> 
     # side seams: a right-facing segment with a left-facing one of another panel (or, for a
     # sleeve, cuff or band, of the same panel: its underarm seam closes it into a tube)
     cands = []
+    crotch = {p.name: _leg_parts(p)[0] for p in panels if p.leg}
     for pa in panels:
         for pb in panels:
             tube = pa.role in TUBE_ROLES
@@ -372,11 +583,18 @@ def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> 
                 continue
             if pa.name != pb.name and tube and pb.role in TUBE_ROLES and by[pa.name].twin == pb.name:
                 continue  # a left and a right sleeve are on opposite arms
+            legs = pa.leg and pb.leg
+            if legs and pa.leg != pb.leg and pa.role != pb.role:
+                continue  # one leg's front and the other's back do not meet
             for a in segs[pa.name]:
                 if a.facing != "right" or a.length < MIN_SEAM or (a.panel, a.name) in used:
                     continue
                 for b in segs[pb.name]:
                     if b.facing != "left" or b.length < MIN_SEAM or (b.panel, b.name) in used:
+                        continue
+                    if legs and ((a.name == crotch[pa.name]) != (pa.leg != pb.leg)):
+                        continue  # the legs meet at their crotch curves only, a leg's front and back elsewhere
+                    if legs and ((b.name == crotch[pb.name]) != (pa.leg != pb.leg)):
                         continue
                     tol = max(0.005, tolerance * max(a.length, b.length))
                     rel = abs(a.length - b.length) / tol
@@ -388,7 +606,10 @@ def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> 
                         conf += 0.15
                         if a.notches:
                             reasons.append(f"{a.notches} notches each")
-                    if by[pa.name].twin == pb.name:
+                    if legs:
+                        conf += 0.3
+                        reasons.append("crotch seam" if pa.leg != pb.leg else f"front and back of the {pa.leg} leg")
+                    elif by[pa.name].twin == pb.name:
                         # twins meet at their centre edges only (their other sides are across the body)
                         if a.facing != _centre_facing(by[pa.name]) or b.facing != _centre_facing(by[pb.name]):
                             continue
@@ -430,7 +651,11 @@ def ring_order(panels: list[_Panel], seams: list[Suggestion]) -> list[str]:
     (a panel's right side sewn to the next one's left); panels the chain
     misses are put in by role."""
     torso = [
-        p for p in panels if p.role not in ("sleeve", "waistband", "collar", "cuff", "binding", "pocket", "facing")
+        p
+        for p in panels
+        if p.role not in ("sleeve", "waistband", "collar", "cuff", "binding", "pocket", "facing")
+        and not p.leg
+        and not p.arm
     ]
     if not torso:
         return []
@@ -562,9 +787,20 @@ def build_design(
     if order and by[order[0]].side:
         w = [np.ptp(by[n].outline[:, 0]) for n in order]
         angle0 = float(math.pi * w[0] / max(sum(w), 1e-9))
+    rings = {n: "torso" for n in pos}
+    for p in panels:
+        if p.leg:
+            # a leg's ring runs front, outer side, back (left leg) or back, outer side, front (right leg)
+            rings[p.name] = f"{p.leg}_leg"
+            pos[p.name] = int((p.role == "back") == (p.leg == "left"))
+        elif p.arm:
+            rings[p.name], pos[p.name] = f"{p.arm}_arm", 0
+    for kind in ("left_leg", "right_leg", "left_arm", "right_arm"):
+        on = sorted((n for n, r in rings.items() if r == kind), key=lambda n: pos[n])
+        if on:
+            notes.append(f"placed round the {kind.replace('_', ' ')}: {' -> '.join(on)}")
     out_pieces = []
     for p in panels:
-        ringed = p.name in pos
         out_pieces.append(
             Piece(
                 name=p.name,
@@ -575,9 +811,9 @@ def build_design(
                 role=p.role,
                 source=p.source,
                 placement=PiecePlacement(
-                    ring="torso" if ringed else "flat",
+                    ring=rings.get(p.name, "flat"),  # type: ignore[arg-type]
                     position=pos.get(p.name, 0),
-                    angle=angle0,
+                    angle=angle0 if rings.get(p.name) == "torso" else 0.0,
                     height=height,
                 ),
             )
