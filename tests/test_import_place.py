@@ -140,3 +140,42 @@ def test_tshirt_sleeves_set_into_the_armholes(stem):
     # the sleeves out on their arms, the bodice's front before its back
     assert (at["sleeve_left"][:, 0] > 0.15).all() and (at["sleeve_right"][:, 0] < -0.15).all()
     assert at["front"][:, 2].mean() > at["back"][:, 2].mean()
+
+
+@pytest.mark.parametrize(
+    ("flavour", "front", "back", "sleeve", "small"),
+    [
+        ("astm", "Detail_2", "Detail_3", "Detail_4", ("Detail", "piece4")),
+        ("aama", "piece2", "piece3", "piece5", ("piece1", "piece4")),
+    ],
+)
+def test_unnamed_valentina_tshirt_roles_from_shapes(flavour, front, back, sleeve, small):
+    """Valentina's TShirt_test names its pieces 'Detail', 'Detail_2', ...
+    (ASTM) or 'piece1', ... (AAMA): the sleeve is told by its shape
+    (symmetric, a cap on top) and cut as a pair, the two bodice halves
+    unfolded and told front from back by their necklines (18 and 2-3 cm
+    deep), the small neck pieces left unplaced; then the T-shirt's 10 seams:
+    shoulders, sides, sleeve underarms and the caps (3-8 % shorter than the
+    armholes) set into the front and back armholes."""
+    from couture.pattern.imported import read_pattern as read
+
+    path = FS.parent / "valentina" / f"TShirt_test_{flavour}.dxf"
+    design, rep = build_design(read(path), exclude=small)
+    by = {p.name: p for p in design.pieces}
+    assert by[front].role == "front" and by[back].role == "back"
+    assert by[f"{sleeve}_left"].placement.ring == "left_arm"
+    assert by[f"{sleeve}_right"].placement.ring == "right_arm"
+    reasons = [s.reason for s in rep.seams]
+    assert len(reasons) == 10
+    assert sum("shoulders" in r for r in reasons) == 2 and sum("tube" in r for r in reasons) == 2
+    assert sum("sleeve cap" in r for r in reasons) == 4 and sum("front and back" in r for r in reasons) == 2
+    x, phi, at = _placed(design)
+    # AAMA's pieces are cut lines (no sew line in the file, no allowance taken off): the front's hem
+    # lies 1 mm above the back's, and the ring's bottom row, the back's alone, pulls it 14 mm into the
+    # hips (couture.pattern.placement.fit_ring); the ASTM file's sew lines are level
+    assert np.isfinite(x).all() and phi.min() > (0.0 if flavour == "astm" else -0.02)
+    assert (at[f"{sleeve}_left"][:, 0] > 0.1).all() and (at[f"{sleeve}_right"][:, 0] < -0.1).all()
+    # with the neck pieces kept, they are no bodice panel: not in the torso ring
+    design, rep = build_design(read(path))
+    assert {p.name: p.placement.ring for p in design.pieces}[small[1]] == "flat"
+    assert rep.order == [front, back]

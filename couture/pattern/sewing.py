@@ -106,6 +106,11 @@ def role_of(name: str) -> str:
     return ""
 
 
+def piece_role(pc: ImportedPiece) -> str:
+    """The piece's role: as given (:func:`roles_by_shape`), else from its name."""
+    return pc.role or role_of(pc.name)
+
+
 # ------------------------------------------------------------------ geometry
 
 
@@ -243,7 +248,7 @@ CROTCH_REACH = 0.2
 this fraction of its width (FreeSewing titan: 0.36 front, 0.48 back; penelope's vent: 0.14)"""
 
 
-def crotch_side(P: np.ndarray, name: str) -> str:
+def crotch_side(P: np.ndarray, role: str) -> str:
     """'min' or 'max': the side (of material x) where a trouser leg's front or
     back piece has its crotch point, a corner at the piece's widest reach,
     between ``CROTCH_DEPTH`` of its height below the top, jutting out past the
@@ -251,7 +256,7 @@ def crotch_side(P: np.ndarray, name: str) -> str:
     from it to the hem; '' when the piece is no trouser leg
     (a skirt's hip curve has no corner there, a vent's corner is low, a
     bodice is not slender enough)."""
-    if role_of(name) not in ("front", "back"):
+    if role not in ("front", "back"):
         return ""
     H, W = float(np.ptp(P[:, 1])), float(np.ptp(P[:, 0]))
     if H < LEG_SLENDER * W:
@@ -290,11 +295,11 @@ def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Pa
     out: list[_Panel] = []
     for pc in pieces:
         P = pc.sew
-        crotch = "" if pc.on_fold else crotch_side(P, pc.name)
+        crotch = "" if pc.on_fold else crotch_side(P, piece_role(pc))
         # a trouser leg's centre edge is its crotch side (its outseam may be the straighter one)
         center_min = crotch == "min" if crotch else centre_at_min_x(pc)
         if pc.on_fold:
-            band = np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and role_of(pc.name) in ("waistband", "binding", "")
+            band = np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and piece_role(pc) in ("waistband", "binding", "")
             W = None
             if band:  # a band cut on the fold: its fold is a short edge; unfold it along its length
                 R = np.column_stack([-P[:, 1], P[:, 0]])  # rotated a quarter turn: the length along x
@@ -306,13 +311,13 @@ def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Pa
                 W = _unfold(P, center_min)
             if W is not None:
                 P = W
-        elif np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and role_of(pc.name) in ("waistband", "binding"):
+        elif np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and piece_role(pc) in ("waistband", "binding"):
             P = np.column_stack([-P[:, 1], P[:, 0]])  # a band lies along material x (round the body)
         copies: list[tuple[str, np.ndarray, str]] = []
         if pc.mirrored and pc.cut_count >= 2:
             a, b = P, _mirror(P)
             # a piece drawn with its centre to the left lies on the body's left at the front, its right at the back
-            role = role_of(pc.name)
+            role = piece_role(pc)
             drawn_left = center_min == (role != "back")
             copies = [("left", a if drawn_left else b, ""), ("right", b if drawn_left else a, "")]
         else:
@@ -329,7 +334,7 @@ def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Pa
                     R,
                     rc,
                     notches=np.zeros((0, 2)) if side else notches - np.array([P[:, 0].min(), P[:, 1].max()]),
-                    role=role_of(pc.name),
+                    role=piece_role(pc),
                     side=side,
                     source=pc.name + (" (mirrored)" if side and Q is not P else ""),
                 )
@@ -414,7 +419,9 @@ def _centre_facing(p: _Panel) -> str:
 
 
 SLEEVE_EASE = 0.12
-"""a sleeve cap may be this fraction longer than its armhole (or 1 cm shorter) to be set into it"""
+"""a sleeve cap may be this fraction longer than its armhole to be set into it"""
+SLEEVE_SHORT = 0.10
+"""... or this fraction shorter (the armhole eased onto it: Valentina's TShirt_test, 8 %)"""
 
 
 def _shoulders(p: _Panel, S: list[_Seg]) -> dict[str, tuple[int, int]]:
@@ -514,7 +521,7 @@ def _set_in_sleeves(panels: list[_Panel], used: set[tuple[str, str]], tolerance:
             continue
         cap = sum(S[i].length for i in tops)
         hole = front.length + back.length
-        if not (hole - 0.01 <= cap <= (1 + SLEEVE_EASE) * hole):
+        if not ((1 - SLEEVE_SHORT) * hole <= cap <= (1 + SLEEVE_EASE) * hole):
             continue
         plus_front = arm_front_at_plus_x(arm)
         if len(tops) == 1:  # the cap in one piece: split it in the armholes' proportion, from its +x end
@@ -656,6 +663,7 @@ def ring_order(panels: list[_Panel], seams: list[Suggestion]) -> list[str]:
         if p.role not in ("sleeve", "waistband", "collar", "cuff", "binding", "pocket", "facing")
         and not p.leg
         and not p.arm
+        and (p.role or max(np.ptp(p.outline[:, 0]), np.ptp(p.outline[:, 1])) >= SMALL_PIECE)
     ]
     if not torso:
         return []
@@ -724,7 +732,7 @@ def _halves_unfolded(pieces: list[ImportedPiece], body: str, notes: list[str]) -
 
     from couture.bodies import measured
 
-    torso = [p for p in pieces if role_of(p.name) not in _NOT_TORSO]
+    torso = [p for p in pieces if piece_role(p) not in _NOT_TORSO and not _small(p)]
     if not torso:
         return pieces
     girth = sum(
@@ -748,6 +756,106 @@ def _halves_unfolded(pieces: list[ImportedPiece], body: str, notes: list[str]) -
     return [replace(p, on_fold=True) if id(p) in ids else p for p in pieces]
 
 
+SLEEVE_CAP = 0.08
+"""[m] a piece whose top rises at least this high (and 0.1 of its width) above
+its top corners, in the middle of a left-right symmetric outline, is a sleeve
+(its cap); a whole bodice or skirt panel dips or lies flat there"""
+SYMMETRY = 0.02
+"""[m] how far a symmetric outline's mirror image may lie from it"""
+SMALL_PIECE = 0.30
+"""[m] unnamed pieces whose height and width are both under this (a facing, a
+binding, a pocket) get no role from their shape"""
+
+
+def _small(pc: ImportedPiece) -> bool:
+    """An unnamed piece under ``SMALL_PIECE`` both ways (a facing, a binding): no bodice part."""
+    return not piece_role(pc) and max(np.ptp(pc.sew[:, 0]), np.ptp(pc.sew[:, 1])) < SMALL_PIECE
+
+
+def _is_sleeve_shape(P: np.ndarray) -> bool:
+    """A sleeve's outline: symmetric about its vertical centre line, its
+    highest point (the cap top) in the middle, ``SLEEVE_CAP`` above the ends
+    of the cap (the outline's corners nearest the top left and top right)."""
+    P = resample(P, find_corners(P), 0.005)[0]  # evenly spaced: a straight side has two vertices as drawn
+    W = float(np.ptp(P[:, 0]))
+    xc = 0.5 * (P[:, 0].min() + P[:, 0].max())
+    M = P.copy()
+    M[:, 0] = 2 * xc - M[:, 0]
+    d = np.sqrt(((M[:, None, :] - P[None, :, :]) ** 2).sum(-1)).min(axis=1)
+    if d.max() > SYMMETRY:
+        return False
+    top = int(np.argmax(P[:, 1]))
+    if abs(P[top, 0] - xc) > 0.15 * W:
+        return False
+    corners = find_corners(P)
+    left = [c for c in corners if P[c, 0] < xc - 0.25 * W]
+    right = [c for c in corners if P[c, 0] > xc + 0.25 * W]
+    if not left or not right:
+        return False
+    ends = min(max(P[left, 1]), max(P[right, 1]))
+    return bool(P[top, 1] - ends >= max(SLEEVE_CAP, 0.1 * W))
+
+
+def _neck_depth(pc: ImportedPiece) -> float:
+    """[m] how far below the piece's top its outline meets its centre line
+    (the fold edge of a half cut on the fold, else the middle): a front's
+    neckline is the deeper one."""
+    P = pc.sew
+    if pc.on_fold:
+        xc = P[:, 0].min() if centre_at_min_x(pc) else P[:, 0].max()
+    else:
+        xc = 0.5 * (P[:, 0].min() + P[:, 0].max())
+    near = np.abs(P[:, 0] - xc) < 0.01
+    return float(P[:, 1].max() - P[near, 1].max()) if near.any() else 0.0
+
+
+def roles_by_shape(pieces: list[ImportedPiece], notes: list[str]) -> list[ImportedPiece]:
+    """The pieces, those whose names say nothing ('Detail_2', 'piece1')
+    given a role by their shape: a sleeve (:func:`_is_sleeve_shape`); of two
+    bodice pieces left, once halves are unfolded, the one with the deeper
+    neckline the front (by more than 5 cm, else nothing is said). Pieces
+    smaller than ``SMALL_PIECE`` both ways get none. A sleeve given once is
+    cut as a pair (a left and a right)."""
+    from dataclasses import replace
+
+    out = []
+    for pc in pieces:
+        small = max(np.ptp(pc.sew[:, 0]), np.ptp(pc.sew[:, 1])) < SMALL_PIECE
+        if not piece_role(pc) and not small and _is_sleeve_shape(pc.sew):
+            notes.append(f"{pc.name}: a sleeve by its shape (a symmetric piece with a cap on top)")
+            pc = replace(pc, role="sleeve")
+        if piece_role(pc) == "sleeve" and pc.cut_count < 2 and not pc.on_fold:
+            notes.append(f"{pc.name}: a sleeve given once, cut as a pair (a left and a right)")
+            pc = replace(pc, cut_count=2, mirrored=True)
+        out.append(pc)
+    return out
+
+
+def fronts_by_neckline(pieces: list[ImportedPiece], notes: list[str]) -> list[ImportedPiece]:
+    """Of exactly two unnamed bodice pieces (no role, not small), the one whose
+    neckline is deeper by more than 5 cm becomes the front, the other the back."""
+    from dataclasses import replace
+
+    unnamed = [
+        i
+        for i, pc in enumerate(pieces)
+        if not piece_role(pc) and max(np.ptp(pc.sew[:, 0]), np.ptp(pc.sew[:, 1])) >= SMALL_PIECE
+    ]
+    if len(unnamed) != 2:
+        return pieces
+    (i, a), (j, b) = ((k, _neck_depth(pieces[k])) for k in unnamed)
+    if abs(a - b) <= 0.05:
+        return pieces
+    front, back = (i, j) if a > b else (j, i)
+    notes.append(
+        f"{pieces[front].name}: the front, {pieces[back].name}: the back (necklines {max(a, b) * 100:.0f} and "
+        f"{min(a, b) * 100:.0f} cm deep at the centre)"
+    )
+    out = list(pieces)
+    out[front], out[back] = replace(out[front], role="front"), replace(out[back], role="back")
+    return out
+
+
 def build_design(
     pieces: list[ImportedPiece],
     *,
@@ -769,7 +877,9 @@ def build_design(
     if not kept:
         raise PatternError("pieces", f"no pieces left to import (all of {[p.name for p in pieces]} excluded)")
     notes: list[str] = []
+    kept = roles_by_shape(kept, notes)
     kept = _halves_unfolded(kept, body, notes)
+    kept = fronts_by_neckline(kept, notes)
     panels = panels_of(kept)
     seams = [s for s in suggest_seams(panels) if s.confidence >= min_confidence]
     order = ring_order(panels, seams)
