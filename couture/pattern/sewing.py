@@ -551,6 +551,33 @@ def _set_in_sleeves(panels: list[_Panel], used: set[tuple[str, str]], tolerance:
     return out
 
 
+EXTENSION = 0.005
+"""[m] a segment of a mirrored pair's centre edge reaching this far past the
+centre line (the centre edge at the waist) is a vent's or a button lap's extension"""
+
+
+def _beyond_centre(p: _Panel, g: _Seg) -> bool:
+    """Whether segment ``g`` of a mirrored pair's panel juts ``EXTENSION`` past
+    the panel's centre line, the centre-side segment that reaches highest (a
+    pencil skirt's vent extension and the step above it: a pattern maker laps
+    the two extensions, sewing only the centre seam above)."""
+    side = _centre_facing(p)
+    lo, hi = float(p.outline[:, 0].min()), float(p.outline[:, 0].max())
+    edge = hi - 0.25 * (hi - lo) if side == "right" else lo + 0.25 * (hi - lo)
+    # the centre edge's segments: facing the centre and in the quarter of the panel next to it (not a dart's legs)
+    segs = [
+        h
+        for h in _segments(p)
+        if h.facing == side and (h.pts[:, 0].min() >= edge if side == "right" else h.pts[:, 0].max() <= edge)
+    ]
+    if not segs:
+        return False
+    top = max(segs, key=lambda h: float(h.pts[:, 1].max()))
+    if side == "right":
+        return bool(g.pts[:, 0].max() > top.pts[:, 0].max() + EXTENSION)
+    return bool(g.pts[:, 0].min() < top.pts[:, 0].min() - EXTENSION)
+
+
 def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> list[Suggestion]:
     """Seams the importer would sew (module docstring), best first."""
     used: set[tuple[str, str]] = set()
@@ -620,6 +647,8 @@ def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> 
                         # twins meet at their centre edges only (their other sides are across the body)
                         if a.facing != _centre_facing(by[pa.name]) or b.facing != _centre_facing(by[pb.name]):
                             continue
+                        if _beyond_centre(by[pa.name], a) or _beyond_centre(by[pb.name], b):
+                            continue  # a vent's or a lap's extension: lapped over its twin, not sewn to it
                         conf += 0.3
                         reasons.append("mirrored pair")
                     elif {by[pa.name].role, by[pb.name].role} == {"front", "back"}:
