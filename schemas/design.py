@@ -124,11 +124,13 @@ class PiecePlacement(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     there): pieces of one ring are wrapped round one axis in ``position``
     order, tiling the body's section there (``couture.pattern.placement.fit_ring``)."""
 
-    ring: Literal["torso", "left_leg", "right_leg", "left_arm", "right_arm", "flat"] = "torso"
+    ring: Literal["torso", "band", "left_leg", "right_leg", "left_arm", "right_arm", "flat"] = "torso"
     """'torso': round the torso, theta = 0 at the front; 'left_leg' /
     'right_leg': round that leg (a trouser leg's front and back, open at the
     inner side above the crotch, where the other leg's panels join); 'left_arm'
     / 'right_arm': a sleeve round that arm, its top centre on top of the arm;
+    'band': a waistband round the torso, a ring of its own above the torso
+    ring's top;
     'flat': laid flat in front of the body (not wrapped: a piece the importer
     could not place)"""
     position: int = 0

@@ -179,3 +179,28 @@ def test_unnamed_valentina_tshirt_roles_from_shapes(flavour, front, back, sleeve
     design, rep = build_design(read(path))
     assert {p.name: p.placement.ring for p in design.pieces}[small[1]] == "flat"
     assert rep.order == [front, back]
+
+
+@pytest.mark.parametrize("stem", ["penelope_cisFemaleAdult34", "penelope_cisFemaleAdult42"])
+def test_skirt_waistband_sewn_round_the_waist(stem):
+    """penelope with its waistband: the band (cut on the fold, unfolded along
+    its length) is split into the skirt's 11 waist pieces between the darts,
+    round the body from the opening at the centre back (back_right, front,
+    back_left), each part as long as its piece; the vent's extensions and its
+    step stay free; the band placed in a ring of its own above the skirt,
+    outside the body."""
+    design, rep = _design(stem)
+    band = [s for s in rep.seams if "waistband" in s.reason]
+    assert len(band) == 11
+    assert [s.b_panel for s in band] == ["back_right"] * 3 + ["front"] * 5 + ["back_left"] * 3
+    for s in band:
+        assert s.a_panel == "waistband" and s.a_length == pytest.approx(s.b_length, abs=1e-3)
+        Q = _segment(design, s.b_panel, s.b_segment)
+        assert Q[:, 1].min() > -0.04  # the waist line, not the vent's step
+    by = {p.name: p for p in design.pieces}
+    assert by["waistband"].placement.ring == "band" and by["front"].placement.ring == "torso"
+    assert by["waistband"].placement.height > by["front"].placement.height
+    assert sum("mirrored pair" in s.reason for s in rep.seams) == 1  # the centre back, not the vent
+    x, phi, at = _placed(design)
+    assert np.isfinite(x).all() and phi.min() > 0.0
+    assert at["waistband"][:, 1].min() > at["front"][:, 1].max() - 0.02

@@ -109,7 +109,8 @@ def arm_front_at_plus_x(arm: str) -> bool:
 def piece_rings(design: Design, body: str = "default") -> list[Ring]:
     """The rings of the design's ringed pieces, each in ``position`` order: the
     torso ring, its top (material y = 0) at the first piece's ``height`` [m]
-    (taken at the default mannequin and moved to the body's own waist); a
+    (taken at the default mannequin and moved to the body's own waist), and
+    a waistband's ring likewise (its own height, above the torso ring); a
     leg's ring about that leg's axis, from its waist height likewise, open at
     the inner side (the trousers sloper's leg rings); an arm's ring about the
     arm, its top a little down from the shoulder (the shirt sloper's sleeve
@@ -117,14 +118,14 @@ def piece_rings(design: Design, body: str = "default") -> list[Ring]:
     from couture.pattern.slopers.shirt import _arm_frame, _cap_radius
 
     rings: list[Ring] = []
-    for kind in ("torso", "left_leg", "right_leg", "left_arm", "right_arm"):
+    for kind in ("torso", "band", "left_leg", "right_leg", "left_arm", "right_arm"):
         ringed = sorted((pc for pc in design.pieces if pc.placement.ring == kind), key=lambda pc: pc.placement.position)
         if not ringed:
             continue
         first = ringed[0].placement
         names = [pc.name for pc in ringed]
         angles = [first.angle] + [0.0] * (len(ringed) - 1)
-        if kind == "torso":
+        if kind in ("torso", "band"):
             rings.append(
                 Ring(
                     names,

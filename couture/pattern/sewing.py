@@ -96,6 +96,8 @@ class _Panel:
     curve (above) meets its inseam (below); -1 not a leg"""
     arm: str = ""
     """'left' or 'right': a sleeve set into that armhole; '' not set in"""
+    band: bool = False
+    """a waistband sewn to the torso ring's top edge (placed round the body above it)"""
 
 
 def role_of(name: str) -> str:
@@ -724,6 +726,86 @@ def ring_order(panels: list[_Panel], seams: list[Suggestion]) -> list[str]:
     return order + [p.name for p in rest]
 
 
+BAND_SLACK = 0.10
+"""a waistband's long edge may differ from the waist it is sewn to by this fraction
+(longer: the rest, an overlap for the closure, stays free)"""
+
+
+BAND_REACH = 0.04
+"""[m] a waist edge lies within this of its panel's top"""
+
+
+def sew_band(panels: list[_Panel], seams: list[Suggestion], order: list[str]) -> tuple[list[Suggestion], float]:
+    """A waistband sewn to the garment's waist: the torso ring's free top
+    edges (between the darts, after every other seam), panel by panel round
+    the body from the opening (between a mirrored pair of backs, else of
+    fronts, else at the first panel's start), each sewn to a part of the
+    band's long lower edge as long as it (the band split there; an overlap
+    left at its end stays free). Marks the band; returns the seams and the
+    opening's angle [rad] round the ring from the ring's start."""
+    bands = [p for p in panels if p.role == "waistband" and p.name not in order and not p.leg]
+    if len(bands) != 1 or not order:
+        return [], 0.0
+    band = bands[0]
+    by = {p.name: p for p in panels}
+    used = {(s.a_panel, s.a_segment) for s in seams} | {(s.b_panel, s.b_segment) for s in seams}
+    start = 0
+    for role in ("back", "front"):
+        for i, n in enumerate(order):
+            prev = order[i - 1]
+            if by[n].role == role and by[prev].twin == n:
+                start = i
+                break
+        else:
+            continue
+        break
+    ring = order[start:] + order[:start]
+    waist: list[_Seg] = []
+    for n in ring:
+        y0 = float(by[n].outline[:, 1].max())
+        # the waist line: free top edges at the panel's top (not a vent's step further down)
+        top = [
+            g
+            for g in _segments(by[n])
+            if g.facing == "top" and (n, g.name) not in used and g.pts[:, 1].min() > y0 - BAND_REACH
+        ]
+        waist += sorted(top, key=lambda g: float(g.pts[:, 0].mean()))  # material x runs with the angle
+    W = sum(g.length for g in waist)
+    S = _segments(band)
+    lows = [i for i, g in enumerate(S) if g.facing == "bottom"]
+    if not waist or not lows:
+        return [], 0.0
+    k = max(lows, key=lambda i: S[i].length)
+    B = S[k].length
+    if not (1 - BAND_SLACK) * W <= B <= (1 + BAND_SLACK) * W:
+        return [], 0.0
+    scale = min(1.0, B / W)
+    for g in waist[:-1] if B <= W else waist:  # split off each waist piece's length, from the band's start
+        _split(band, k, g.length * scale)
+        k += 1
+    S = _segments(band)
+    first = k - (len(waist) - 1 if B <= W else len(waist))
+    out = []
+    for j, g in enumerate(waist):
+        h = S[first + j]
+        out.append(
+            Suggestion(
+                band.name,
+                h.name,
+                g.panel,
+                g.name,
+                0.8,
+                f"waistband to the waist ({j + 1} of {len(waist)})",
+                h.length,
+                g.length,
+            )
+        )
+    band.band = True
+    w = [float(np.ptp(by[n].outline[:, 0])) for n in order]
+    # the opening's angle from the first ring panel's start edge
+    return out, 2 * math.pi * sum(w[:start]) / max(sum(w), 1e-9)
+
+
 def is_top(panels: list[_Panel]) -> bool:
     """A garment worn from the shoulders (has a sleeve, a collar, a yoke, or 'shirt'/'top' pieces)."""
     return any(p.role in ("sleeve", "collar", "yoke") for p in panels) or any(
@@ -926,6 +1008,8 @@ def build_design(
     if order and by[order[0]].side:
         w = [np.ptp(by[n].outline[:, 0]) for n in order]
         angle0 = float(math.pi * w[0] / max(sum(w), 1e-9))
+    band_seams, opening = ([], 0.0) if lm != "waist" else sew_band(panels, seams, order)
+    seams += band_seams
     rings = {n: "torso" for n in pos}
     for p in panels:
         if p.leg:
@@ -934,10 +1018,20 @@ def build_design(
             pos[p.name] = int((p.role == "back") == (p.leg == "left"))
         elif p.arm:
             rings[p.name], pos[p.name] = f"{p.arm}_arm", 0
+        elif p.band:
+            rings[p.name], pos[p.name] = "band", 0
     for kind in ("left_leg", "right_leg", "left_arm", "right_arm"):
         on = sorted((n for n, r in rings.items() if r == kind), key=lambda n: pos[n])
         if on:
             notes.append(f"placed round the {kind.replace('_', ' ')}: {' -> '.join(on)}")
+    band_angle = 0.0
+    if band_seams:
+        # the band starts at the opening and runs round with the angle: its centre half its length on
+        w = [float(np.ptp(by[n].outline[:, 0])) for n in order]
+        start = angle0 - math.pi * w[0] / max(sum(w), 1e-9) + opening
+        b = next(p for p in panels if p.band)
+        band_angle = float(start + math.pi * np.ptp(b.outline[:, 0]) / max(sum(w), 1e-9))
+        notes.append(f"{b.name} sewn to the waist in {len(band_seams)} parts, round the body from the opening")
     out_pieces = []
     for p in panels:
         out_pieces.append(
@@ -952,8 +1046,8 @@ def build_design(
                 placement=PiecePlacement(
                     ring=rings.get(p.name, "flat"),  # type: ignore[arg-type]
                     position=pos.get(p.name, 0),
-                    angle=angle0 if rings.get(p.name) == "torso" else 0.0,
-                    height=height,
+                    angle=angle0 if rings.get(p.name) == "torso" else (band_angle if p.band else 0.0),
+                    height=height + float(np.ptp(p.outline[:, 1])) if p.band else height,
                 ),
             )
         )
