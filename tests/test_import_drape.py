@@ -58,7 +58,7 @@ def test_imported_pencil_skirt_drapes_dressed():
         ("penelope_cisFemaleAdult34", "cisFemaleAdult34"),
     ],
 )
-def test_imported_trousers_and_tshirt_drape_coarse(stem, measurements):
+def test_imported_trousers_tshirt_and_banded_skirt_drape_coarse(stem, measurements):
     """FreeSewing's titan (legs round the legs, crotch seams closed by the
     drape), teagan (sleeves set into the armholes) and penelope with its
     waistband sewn round the waist (a ring of its own), for their measurement
