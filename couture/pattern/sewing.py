@@ -17,6 +17,15 @@ the body by role (``couture import``).
   confidence in [0, 1] says how sure: length agreement, equal notch counts,
   and whether the two panels are a mirrored pair or a front and a back. An
   unpaired segment is a free edge (a hem, a neckline, a waist).
+- Roles from names, else from shapes (:func:`roles_by_shape`: a sleeve's
+  capped symmetric outline, a front's deeper neckline).
+- Trousers (:func:`crotch_side`): a leg's front and back sewn at outseam and
+  inseam, the legs at their crotch curves; each leg round its own leg.
+- Tops (:func:`_set_in_sleeves`): shoulders paired front to back, each
+  sleeve's cap split in the armholes' proportion and set into the front and
+  back armholes; each sleeve round its arm.
+- Waistbands (:func:`sew_band`): the band split into the waist's pieces round
+  the body from the opening, in a ring of its own above the skirt.
 - Placement: the panels round the torso in the order the side seams chain
   them (a panel's right side sewn to the next one's left), starting from the
   front; where they do not chain, by role (front 0, left pi/2, back pi, right
