@@ -124,9 +124,15 @@ class PiecePlacement(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     there): pieces of one ring are wrapped round one axis in ``position``
     order, tiling the body's section there (``couture.pattern.placement.fit_ring``)."""
 
-    ring: Literal["torso", "flat"] = "torso"
-    """'torso': round the torso, theta = 0 at the front; 'flat': laid flat in
-    front of the body (not wrapped: a piece the importer could not place)"""
+    ring: Literal["torso", "band", "left_leg", "right_leg", "left_arm", "right_arm", "flat"] = "torso"
+    """'torso': round the torso, theta = 0 at the front; 'left_leg' /
+    'right_leg': round that leg (a trouser leg's front and back, open at the
+    inner side above the crotch, where the other leg's panels join); 'left_arm'
+    / 'right_arm': a sleeve round that arm, its top centre on top of the arm;
+    'band': a waistband round the torso, a ring of its own above the torso
+    ring's top;
+    'flat': laid flat in front of the body (not wrapped: a piece the importer
+    could not place)"""
     position: int = 0
     """order round the ring, by increasing theta (front, the body's left side,
     back, its right side)"""
@@ -135,7 +141,8 @@ class PiecePlacement(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     pi/2 the body's left); read from the ring's first piece only"""
     height: float = 0.27
     """[m] world height (y) of material y = 0 (each piece's top); read from
-    the ring's first piece only"""
+    the ring's first piece only (a leg: where its axis crosses that height; an
+    arm: ignored, the sleeve's top hangs from the shoulder)"""
 
 
 class Piece(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):

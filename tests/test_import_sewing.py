@@ -62,8 +62,9 @@ def test_lengths_too_different_are_not_sewn():
 
 def test_penelope_seams_are_what_a_pattern_maker_sews():
     """FreeSewing's pencil skirt (front on the fold, back cut twice, two darts
-    on each half): the importer suggests the 8 darts, the centre back (and
-    vent) between the two backs, and the two side seams front-to-back; the
+    on each half): the importer suggests the 8 darts, the centre back between
+    the two backs down to the vent (the vent's extensions, jutting past the
+    centre line, lap: not sewn), and the two side seams front-to-back; the
     waist and hem stay free. The seams' two sides agree in length within 3 %."""
     pieces = [p for p in read_pattern(FS / "penelope_cisFemaleAdult34.svg") if p.name != "waistband"]
     design, rep = build_design(pieces)
@@ -75,7 +76,9 @@ def test_penelope_seams_are_what_a_pattern_maker_sews():
         assert abs(s.a_length - s.b_length) <= 0.03 * max(s.a_length, s.b_length)
         if "dart" in s.reason:
             assert s.a_panel == s.b_panel
-    assert kinds == {"dart legs": 8, "mirrored pair": 2, "front and back": 2}
+    assert kinds == {"dart legs": 8, "mirrored pair": 1, "front and back": 2}
+    vent = [g for p, g, ln in rep.free if p == "back_left" and 0.2 < ln < 0.3]  # the extension, 25 cm
+    assert len(vent) == 2  # and the hem, 29 cm
     sides = [s for s in rep.seams if "front and back" in s.reason]
     assert {s.a_panel for s in sides} | {s.b_panel for s in sides} == {"front", "back_left", "back_right"}
     # the torso ring follows the seams: front, the body's left back, its right back
@@ -131,12 +134,13 @@ def test_teagan_is_a_top():
     design, rep = build_design(pieces)
     assert rep.landmark == "shoulder"
     assert {p.name for p in design.pieces} == {"front", "back", "sleeve_left", "sleeve_right"}
-    # the sleeves are not in the torso ring (placed flat until sleeve placement exists)
-    flat = {p.name for p in design.pieces if p.placement.ring == "flat"}
-    assert flat == {"sleeve_left", "sleeve_right"}
-    # shoulder and side seams front-to-back
+    # the sleeves are not in the torso ring: each round its arm (tests/test_import_place.py)
+    rings = {p.name: p.placement.ring for p in design.pieces}
+    assert rings == {"front": "torso", "back": "torso", "sleeve_left": "left_arm", "sleeve_right": "right_arm"}
+    # side seams front-to-back, and the shoulders
     fb = [s for s in rep.seams if "front and back" in s.reason]
-    assert len(fb) >= 2
+    assert len(fb) == 2
+    assert sum("shoulders" in s.reason for s in rep.seams) == 2
     assert all(math.isfinite(s.confidence) and 0 <= s.confidence <= 1 for s in rep.seams)
 
 
@@ -180,7 +184,7 @@ def test_a_pattern_message_carries_the_pieces():
     msg = PatternMsg(design=design, source="test", name="tshirt", design_id="x")
     again = decode(encode(msg), PatternMsg)
     assert again.design == design
-    assert len(again.design.pieces) == 5
+    assert len(again.design.pieces) == 6  # the sleeve, given once, as a left and a right
 
 
 @pytest.mark.parametrize(
@@ -204,6 +208,9 @@ def test_every_fixture_gives_a_design_file(file):
 
 def test_sleeves_close_into_tubes_not_onto_each_other():
     design, rep = build_design(read_pattern(FS / "teagan_cisFemaleAdult34.svg"))
-    sleeve = [s for s in rep.seams if "sleeve" in s.a_panel or "sleeve" in s.b_panel]
+    sleeve = [s for s in rep.seams if s.a_panel.startswith("sleeve") and s.b_panel.startswith("sleeve")]
     assert len(sleeve) == 2
     assert all(s.a_panel == s.b_panel and "tube" in s.reason for s in sleeve)
+    # the rest of the sleeves' seams set their caps into the bodice's armholes
+    caps = [s for s in rep.seams if (s.a_panel + s.b_panel).count("sleeve") == 1]
+    assert len(caps) == 4 and all("sleeve cap" in s.reason for s in caps)

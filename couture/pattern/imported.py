@@ -89,6 +89,9 @@ class ImportedPiece:
     on_fold: bool = False
     """the piece is a half, cut on the fold (FreeSewing 'onFold'): mirror about its fold edge"""
     texts: list[str] = field(default_factory=list)
+    role: str = ""
+    """what the piece is ('front', 'sleeve', ... as ``couture.pattern.sewing.role_of``
+    reads names); '' from its name"""
     center_at_min_x: bool | None = True
     """the piece's centre (front/back) edge is its left one as drawn (FreeSewing parts are
     drafted with the centre at x = 0, to the left); None: unknown (a DXF), the side with

@@ -74,22 +74,79 @@ def piece_panels(design: Design) -> list[Panel]:
     return out
 
 
+SLEEVE_DOWN = 0.03
+"""[m] a sleeve's top lies this far down its arm's placement axis from the arm
+root point (clear of the shoulder, as the shirt sloper's sleeves)"""
+LEG_MARGIN = 0.02
+"""[m] clearance of a trouser leg's ring (as the trousers sloper's)"""
+
+
+def leg_frame(leg: str, height: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """A leg's placement frame: (axis point at world height ``height`` [m],
+    unit axis up the leg, unit front direction across it, the angle [rad] of
+    the leg's inner side, where its ring stays open)."""
+    sign = 1.0 if leg == "left" else -1.0
+    a = M.LEFT_LEG_AXIS * np.array([sign, 1.0, 1.0])
+    a = a / np.linalg.norm(a)
+    top = M.LEFT_LEG_TOP * np.array([sign, 1.0, 1.0])
+    origin = top + a * ((height - top[1]) / a[1])
+    f = np.array([0.0, 0.0, 1.0]) - a[2] * a
+    f /= np.linalg.norm(f)
+    b = np.cross(a, f)
+    inner = np.array([-sign, 0.0, 0.0])
+    return origin, a, f, float(np.arctan2(inner @ b, inner @ f))
+
+
+def arm_front_at_plus_x(arm: str) -> bool:
+    """Whether a sleeve on ``arm`` ('left' or 'right') has its material +x
+    half (theta > 0 from the top of the arm) toward the body's front."""
+    from couture.pattern.slopers.shirt import _arm_frame
+
+    a, f = _arm_frame(1.0 if arm == "left" else -1.0)
+    return bool(np.cross(a, f)[2] > 0)
+
+
 def piece_rings(design: Design, body: str = "default") -> list[Ring]:
-    """The torso ring of the design's ringed pieces, in ``position`` order,
-    its top (material y = 0) at the first piece's ``height`` [m] (0 lies
-    ``waist_y`` of the body below it if the body is not the default one: the
-    height is taken relative to the default mannequin's waist)."""
-    ringed = sorted((pc for pc in design.pieces if pc.placement.ring == "torso"), key=lambda pc: pc.placement.position)
-    if not ringed:
-        return []
-    first = ringed[0].placement
-    return [
-        Ring(
-            [pc.name for pc in ringed],
-            [first.angle] + [0.0] * (len(ringed) - 1),
-            np.array([0.0, first.height, M.TORSO_AXIS_Z]),
-            section="torso",
-            landmark="waist",
-            top_rows_as_full=True,
-        )
-    ]
+    """The rings of the design's ringed pieces, each in ``position`` order: the
+    torso ring, its top (material y = 0) at the first piece's ``height`` [m]
+    (taken at the default mannequin and moved to the body's own waist), and
+    a waistband's ring likewise (its own height, above the torso ring); a
+    leg's ring about that leg's axis, from its waist height likewise, open at
+    the inner side (the trousers sloper's leg rings); an arm's ring about the
+    arm, its top a little down from the shoulder (the shirt sloper's sleeve
+    rings)."""
+    from couture.pattern.slopers.shirt import _arm_frame, _cap_radius
+
+    rings: list[Ring] = []
+    for kind in ("torso", "band", "left_leg", "right_leg", "left_arm", "right_arm"):
+        ringed = sorted((pc for pc in design.pieces if pc.placement.ring == kind), key=lambda pc: pc.placement.position)
+        if not ringed:
+            continue
+        first = ringed[0].placement
+        names = [pc.name for pc in ringed]
+        angles = [first.angle] + [0.0] * (len(ringed) - 1)
+        if kind in ("torso", "band"):
+            rings.append(
+                Ring(
+                    names,
+                    angles,
+                    np.array([0.0, first.height, M.TORSO_AXIS_Z]),
+                    section="torso",
+                    landmark="waist",
+                    top_rows_as_full=True,
+                )
+            )
+        elif kind.endswith("_leg"):
+            leg = kind.split("_")[0]
+            origin, a, f, gap = leg_frame(leg, first.height)
+            rings.append(
+                Ring(
+                    names, angles, origin, axis=a, ref=f, margin=LEG_MARGIN, section=kind, gap_at=gap, landmark="waist"
+                )
+            )
+        else:
+            sign = 1.0 if kind == "left_arm" else -1.0
+            a, f = _arm_frame(sign)
+            origin = M.LEFT_ARM_SHOULDER * np.array([sign, 1.0, 1.0]) - SLEEVE_DOWN * a
+            rings.append(Ring(names, angles, origin, axis=a, ref=f, body_radius=_cap_radius, section=kind))
+    return rings

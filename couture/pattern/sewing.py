@@ -17,6 +17,15 @@ the body by role (``couture import``).
   confidence in [0, 1] says how sure: length agreement, equal notch counts,
   and whether the two panels are a mirrored pair or a front and a back. An
   unpaired segment is a free edge (a hem, a neckline, a waist).
+- Roles from names, else from shapes (:func:`roles_by_shape`: a sleeve's
+  capped symmetric outline, a front's deeper neckline).
+- Trousers (:func:`crotch_side`): a leg's front and back sewn at outseam and
+  inseam, the legs at their crotch curves; each leg round its own leg.
+- Tops (:func:`_set_in_sleeves`): shoulders paired front to back, each
+  sleeve's cap split in the armholes' proportion and set into the front and
+  back armholes; each sleeve round its arm.
+- Waistbands (:func:`sew_band`): the band split into the waist's pieces round
+  the body from the opening, in a ring of its own above the skirt.
 - Placement: the panels round the torso in the order the side seams chain
   them (a panel's right side sewn to the next one's left), starting from the
   front; where they do not chain, by role (front 0, left pi/2, back pi, right
@@ -89,6 +98,15 @@ class _Panel:
     """the other panel of a mirrored pair"""
     grain: float = 0.0
     source: str = ""
+    leg: str = ""
+    """'left' or 'right': a trouser leg's front or back panel, on that leg; '' not a leg"""
+    crotch: int = -1
+    """a leg panel's crotch point: the index in ``corners`` where its crotch
+    curve (above) meets its inseam (below); -1 not a leg"""
+    arm: str = ""
+    """'left' or 'right': a sleeve set into that armhole; '' not set in"""
+    band: bool = False
+    """a waistband sewn to the torso ring's top edge (placed round the body above it)"""
 
 
 def role_of(name: str) -> str:
@@ -97,6 +115,11 @@ def role_of(name: str) -> str:
         if w in low.split() or (w in low and w in ("waistband", "sleeve", "collar")):
             return w
     return ""
+
+
+def piece_role(pc: ImportedPiece) -> str:
+    """The piece's role: as given (:func:`roles_by_shape`), else from its name."""
+    return pc.role or role_of(pc.name)
 
 
 # ------------------------------------------------------------------ geometry
@@ -227,6 +250,47 @@ def _unfold(P: np.ndarray, at_min_x: bool) -> np.ndarray | None:
     return whole if signed_area(whole) > 0 else whole[::-1].copy()
 
 
+LEG_SLENDER = 1.5
+"""a trouser leg panel is at least this many times as tall as it is wide"""
+CROTCH_DEPTH = (0.1, 0.6)
+"""a trouser leg panel's crotch point lies this fraction of its height below its top"""
+CROTCH_REACH = 0.2
+"""a trouser leg panel's crotch point juts out past its waist's end on that side by at least
+this fraction of its width (FreeSewing titan: 0.36 front, 0.48 back; penelope's vent: 0.14)"""
+
+
+def crotch_side(P: np.ndarray, role: str) -> str:
+    """'min' or 'max': the side (of material x) where a trouser leg's front or
+    back piece has its crotch point, a corner at the piece's widest reach,
+    between ``CROTCH_DEPTH`` of its height below the top, jutting out past the
+    waist by ``CROTCH_REACH`` of its width, with the inseam running on down
+    from it to the hem; '' when the piece is no trouser leg
+    (a skirt's hip curve has no corner there, a vent's corner is low, a
+    bodice is not slender enough)."""
+    if role not in ("front", "back"):
+        return ""
+    H, W = float(np.ptp(P[:, 1])), float(np.ptp(P[:, 0]))
+    if H < LEG_SLENDER * W:
+        return ""
+    corners = find_corners(P)
+    top, bottom = float(P[:, 1].max()), float(P[:, 1].min())
+    for side, i in (("max", int(np.argmax(P[:, 0]))), ("min", int(np.argmin(P[:, 0])))):
+        depth = (top - P[i, 1]) / H
+        near = min(corners, key=lambda c: float(np.linalg.norm(P[c] - P[i])))
+        if not (CROTCH_DEPTH[0] <= depth <= CROTCH_DEPTH[1]) or np.linalg.norm(P[near] - P[i]) > 0.01:
+            continue
+        # the crotch reaches well past the waist's end on that side (a skirt's vent juts out a few cm)
+        upper = P[P[:, 1] >= top - 0.05 * H, 0]
+        reach = P[i, 0] - upper.max() if side == "max" else upper.min() - P[i, 0]
+        if reach < CROTCH_REACH * W:
+            continue
+        # the outline below the crotch point on its side reaches the hem: the inseam
+        beyond = P[:, 0] >= P[i, 0] - 0.5 * W if side == "max" else P[:, 0] <= P[i, 0] + 0.5 * W
+        if float(P[beyond, 1].min()) <= bottom + 0.05 * H:
+            return side
+    return ""
+
+
 def _mirror(P: np.ndarray) -> np.ndarray:
     Q = P[::-1].copy()
     Q[:, 0] = -Q[:, 0]
@@ -242,9 +306,11 @@ def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Pa
     out: list[_Panel] = []
     for pc in pieces:
         P = pc.sew
-        center_min = centre_at_min_x(pc)
+        crotch = "" if pc.on_fold else crotch_side(P, piece_role(pc))
+        # a trouser leg's centre edge is its crotch side (its outseam may be the straighter one)
+        center_min = crotch == "min" if crotch else centre_at_min_x(pc)
         if pc.on_fold:
-            band = np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and role_of(pc.name) in ("waistband", "binding", "")
+            band = np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and piece_role(pc) in ("waistband", "binding", "")
             W = None
             if band:  # a band cut on the fold: its fold is a short edge; unfold it along its length
                 R = np.column_stack([-P[:, 1], P[:, 0]])  # rotated a quarter turn: the length along x
@@ -256,13 +322,13 @@ def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Pa
                 W = _unfold(P, center_min)
             if W is not None:
                 P = W
-        elif np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and role_of(pc.name) in ("waistband", "binding"):
+        elif np.ptp(P[:, 1]) > 3 * np.ptp(P[:, 0]) and piece_role(pc) in ("waistband", "binding"):
             P = np.column_stack([-P[:, 1], P[:, 0]])  # a band lies along material x (round the body)
         copies: list[tuple[str, np.ndarray, str]] = []
         if pc.mirrored and pc.cut_count >= 2:
             a, b = P, _mirror(P)
             # a piece drawn with its centre to the left lies on the body's left at the front, its right at the back
-            role = role_of(pc.name)
+            role = piece_role(pc)
             drawn_left = center_min == (role != "back")
             copies = [("left", a if drawn_left else b, ""), ("right", b if drawn_left else a, "")]
         else:
@@ -279,14 +345,43 @@ def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Pa
                     R,
                     rc,
                     notches=np.zeros((0, 2)) if side else notches - np.array([P[:, 0].min(), P[:, 1].max()]),
-                    role=role_of(pc.name),
+                    role=piece_role(pc),
                     side=side,
                     source=pc.name + (" (mirrored)" if side and Q is not P else ""),
                 )
             )
         if len(copies) == 2:
             out[-2].twin, out[-1].twin = out[-1].name, out[-2].name
+        if crotch:
+            for p in out[-len(copies) :]:
+                _mark_leg(p)
     return out
+
+
+def _mark_leg(p: _Panel) -> None:
+    """Sets a trouser leg panel's leg and crotch corner. Material x runs with
+    the leg ring's angle (front, outer side, back, inner side: the left leg's
+    front goes from its crotch to its outseam, the right leg's toward its
+    crotch), so a front with its crotch at min x is on the left leg, a back
+    with its crotch at max x too."""
+    side = crotch_side(p.outline, p.role)
+    if not side:
+        return
+    i = int(np.argmax(p.outline[:, 0]) if side == "max" else np.argmin(p.outline[:, 0]))
+    k = min(range(len(p.corners)), key=lambda j: float(np.linalg.norm(p.outline[p.corners[j]] - p.outline[i])))
+    p.crotch = k
+    p.leg = "left" if (side == "min") == (p.role == "front") else "right"
+
+
+def _leg_parts(p: _Panel) -> tuple[str, str]:
+    """(crotch curve, inseam): the names of a leg panel's segments above and
+    below its crotch point."""
+    n = len(p.corners)
+    before, after = f"e{(p.crotch - 1) % n}", f"e{p.crotch}"
+    segs = {g.name: g for g in _segments(p)}
+    # the inseam runs down to the hem: its far end is the lower one
+    low_after = segs[after].pts[-1][1] < segs[before].pts[0][1]
+    return (before, after) if low_after else (after, before)
 
 
 # ------------------------------------------------------------------ seams
@@ -334,12 +429,172 @@ def _centre_facing(p: _Panel) -> str:
     return ("right" if at_back else "left") if p.side == "left" else ("left" if at_back else "right")
 
 
+SLEEVE_EASE = 0.12
+"""a sleeve cap may be this fraction longer than its armhole to be set into it"""
+SLEEVE_SHORT = 0.10
+"""... or this fraction shorter (the armhole eased onto it: Valentina's TShirt_test, 8 %)"""
+
+
+def _shoulders(p: _Panel, S: list[_Seg]) -> dict[str, tuple[int, int]]:
+    """A bodice panel's shoulder seams and the armholes below them: {'right' |
+    'left': (shoulder index, armhole index) in ``S``}. A shoulder is a top
+    edge sloping down to the panel's side, where the side's topmost edge (the
+    armhole) meets it: on the right, the armhole runs up into it (counter-
+    clockwise order), on the left down out of it."""
+    out: dict[str, tuple[int, int]] = {}
+    n = len(S)
+    cx = 0.5 * (p.outline[:, 0].min() + p.outline[:, 0].max())
+    for i, g in enumerate(S):
+        if g.facing != "top" or n < 4:
+            continue
+        if S[i - 1].facing == "right" and g.pts[0][0] > cx and g.pts[0][1] < g.pts[-1][1]:
+            out["right"] = (i, (i - 1) % n)
+        if S[(i + 1) % n].facing == "left" and g.pts[-1][0] < cx and g.pts[-1][1] < g.pts[0][1]:
+            out["left"] = (i, (i + 1) % n)
+    return out
+
+
+def _split(p: _Panel, seg: int, at: float) -> None:
+    """Splits segment ``seg`` of ``p`` at arc length ``at`` [m] from its start:
+    a corner (and an outline vertex) there; the later segments' names shift by one."""
+    k = len(p.outline)
+    c, d = p.corners[seg], p.corners[(seg + 1) % len(p.corners)]
+    idx = (c + np.arange((d - c) % k + 1)) % k
+    Q = p.outline[idx]
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(Q, axis=0), axis=1))])
+    j = int(np.clip(np.searchsorted(s, at, side="right") - 1, 0, len(Q) - 2))
+    t = (at - s[j]) / max(s[j + 1] - s[j], 1e-300)
+    q = (1 - t) * Q[j] + t * Q[j + 1]
+    after = int(idx[j]) + 1  # the new vertex's index, after outline vertex idx[j]
+    p.outline = np.insert(p.outline, after, q, axis=0)
+    corners = [ci + 1 if ci >= after else ci for ci in p.corners]
+    p.corners = sorted(corners + [after])
+
+
+def _set_in_sleeves(panels: list[_Panel], used: set[tuple[str, str]], tolerance: float) -> list[Suggestion]:
+    """A top's shoulder seams (a front's right shoulder with a back's left one,
+    the body's left, and the other way round) and its sleeves set into the
+    armholes: each sleeve's cap (its top edge between the underarm seams) is
+    split where its front part is as long as the front armhole's share of
+    the whole armhole, the part on the front side of the arm
+    (:func:`couture.pattern.pieces.arm_front_at_plus_x`) sewn to the front's
+    armhole, the other to the back's. Marks the sleeves' ``arm``; adds the
+    segments sewn to ``used``."""
+    from couture.pattern.pieces import arm_front_at_plus_x
+
+    out: list[Suggestion] = []
+    body = [p for p in panels if p.role in ("front", "back") and not p.leg]
+    segs = {p.name: _segments(p) for p in body}
+    sh = {p.name: _shoulders(p, segs[p.name]) for p in body}
+    armholes: dict[str, dict[str, _Seg]] = {}
+    for pa in body:
+        for pb in body:
+            if pa.role == pb.role or "right" not in sh[pa.name] or "left" not in sh[pb.name]:
+                continue
+            a = segs[pa.name][sh[pa.name]["right"][0]]
+            b = segs[pb.name][sh[pb.name]["left"][0]]
+            if (a.panel, a.name) in used or (b.panel, b.name) in used:
+                continue
+            if abs(a.length - b.length) > max(0.005, tolerance * max(a.length, b.length)):
+                continue
+            conf = 0.7 + 0.3 * (1 - abs(a.length - b.length) / max(0.005, tolerance * max(a.length, b.length)))
+            out.append(
+                Suggestion(
+                    a.panel,
+                    a.name,
+                    b.panel,
+                    b.name,
+                    round(conf, 3),
+                    "shoulders of a front and a back",
+                    a.length,
+                    b.length,
+                )
+            )
+            used.update({(a.panel, a.name), (b.panel, b.name)})
+            # the front's right side and the back's left are the body's left (material x grows toward it)
+            arm = "left" if pa.role == "front" else "right"
+            armholes[arm] = {
+                pa.role: segs[pa.name][sh[pa.name]["right"][1]],
+                pb.role: segs[pb.name][sh[pb.name]["left"][1]],
+            }
+    sleeves = [p for p in panels if p.role == "sleeve"]
+    free_arms: list[str] = [a for a in ("left", "right") if a in armholes]
+    for sl in sorted(sleeves, key=lambda p: p.side != "left"):
+        arm = sl.side if sl.side in free_arms else (free_arms[0] if free_arms and not sl.side else "")
+        if not arm:
+            continue
+        S = _segments(sl)
+        tops = [i for i, g in enumerate(S) if g.facing == "top"]
+        if not tops or tops != list(range(tops[0], tops[0] + len(tops))) or len(tops) > 2:
+            continue
+        front, back = armholes[arm]["front"], armholes[arm]["back"]
+        if any(h in used for h in ((front.panel, front.name), (back.panel, back.name))):
+            continue
+        cap = sum(S[i].length for i in tops)
+        hole = front.length + back.length
+        if not ((1 - SLEEVE_SHORT) * hole <= cap <= (1 + SLEEVE_EASE) * hole):
+            continue
+        plus_front = arm_front_at_plus_x(arm)
+        if len(tops) == 1:  # the cap in one piece: split it in the armholes' proportion, from its +x end
+            first = front if plus_front else back
+            _split(sl, tops[0], cap * first.length / hole)
+            S = _segments(sl)
+            tops = [tops[0], tops[0] + 1]
+        parts = (S[tops[0]], S[tops[1]])  # counter-clockwise: the +x part first
+        pairs = ((parts[0], front), (parts[1], back)) if plus_front else ((parts[0], back), (parts[1], front))
+        for c, h in pairs:
+            ease = c.length / h.length - 1
+            out.append(
+                Suggestion(
+                    c.panel,
+                    c.name,
+                    h.panel,
+                    h.name,
+                    round(float(np.clip(0.9 - 2 * abs(ease), 0.5, 0.9)), 3),
+                    f"sleeve cap into the {h.panel} armhole ({ease * 100:+.0f} % ease)",
+                    c.length,
+                    h.length,
+                )
+            )
+            used.update({(c.panel, c.name), (h.panel, h.name)})
+        sl.arm = arm
+        free_arms.remove(arm)
+    return out
+
+
+EXTENSION = 0.005
+"""[m] a segment of a mirrored pair's centre edge reaching this far past the
+centre line (the centre edge at the waist) is a vent's or a button lap's extension"""
+
+
+def _beyond_centre(p: _Panel, g: _Seg) -> bool:
+    """Whether segment ``g`` of a mirrored pair's panel juts ``EXTENSION`` past
+    the panel's centre line, the centre-side segment that reaches highest (a
+    pencil skirt's vent extension and the step above it: a pattern maker laps
+    the two extensions, sewing only the centre seam above)."""
+    side = _centre_facing(p)
+    lo, hi = float(p.outline[:, 0].min()), float(p.outline[:, 0].max())
+    edge = hi - 0.25 * (hi - lo) if side == "right" else lo + 0.25 * (hi - lo)
+    # the centre edge's segments: facing the centre and in the quarter of the panel next to it (not a dart's legs)
+    segs = [
+        h
+        for h in _segments(p)
+        if h.facing == side and (h.pts[:, 0].min() >= edge if side == "right" else h.pts[:, 0].max() <= edge)
+    ]
+    if not segs:
+        return False
+    top = max(segs, key=lambda h: float(h.pts[:, 1].max()))
+    if side == "right":
+        return bool(g.pts[:, 0].max() > top.pts[:, 0].max() + EXTENSION)
+    return bool(g.pts[:, 0].min() < top.pts[:, 0].min() - EXTENSION)
+
+
 def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> list[Suggestion]:
     """Seams the importer would sew (module docstring), best first."""
+    used: set[tuple[str, str]] = set()
+    out: list[Suggestion] = _set_in_sleeves(panels, used, tolerance)
     segs = {p.name: _segments(p) for p in panels}
     by = {p.name: p for p in panels}
-    used: set[tuple[str, str]] = set()
-    out: list[Suggestion] = []
     # darts: consecutive legs of equal length meeting in a sharp V that points into the panel
     for p in panels:
         S = segs[p.name]
@@ -365,6 +620,7 @@ def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> 
     # side seams: a right-facing segment with a left-facing one of another panel (or, for a
     # sleeve, cuff or band, of the same panel: its underarm seam closes it into a tube)
     cands = []
+    crotch = {p.name: _leg_parts(p)[0] for p in panels if p.leg}
     for pa in panels:
         for pb in panels:
             tube = pa.role in TUBE_ROLES
@@ -372,11 +628,18 @@ def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> 
                 continue
             if pa.name != pb.name and tube and pb.role in TUBE_ROLES and by[pa.name].twin == pb.name:
                 continue  # a left and a right sleeve are on opposite arms
+            legs = pa.leg and pb.leg
+            if legs and pa.leg != pb.leg and pa.role != pb.role:
+                continue  # one leg's front and the other's back do not meet
             for a in segs[pa.name]:
                 if a.facing != "right" or a.length < MIN_SEAM or (a.panel, a.name) in used:
                     continue
                 for b in segs[pb.name]:
                     if b.facing != "left" or b.length < MIN_SEAM or (b.panel, b.name) in used:
+                        continue
+                    if legs and ((a.name == crotch[pa.name]) != (pa.leg != pb.leg)):
+                        continue  # the legs meet at their crotch curves only, a leg's front and back elsewhere
+                    if legs and ((b.name == crotch[pb.name]) != (pa.leg != pb.leg)):
                         continue
                     tol = max(0.005, tolerance * max(a.length, b.length))
                     rel = abs(a.length - b.length) / tol
@@ -388,10 +651,15 @@ def suggest_seams(panels: list[_Panel], tolerance: float = LENGTH_TOLERANCE) -> 
                         conf += 0.15
                         if a.notches:
                             reasons.append(f"{a.notches} notches each")
-                    if by[pa.name].twin == pb.name:
+                    if legs:
+                        conf += 0.3
+                        reasons.append("crotch seam" if pa.leg != pb.leg else f"front and back of the {pa.leg} leg")
+                    elif by[pa.name].twin == pb.name:
                         # twins meet at their centre edges only (their other sides are across the body)
                         if a.facing != _centre_facing(by[pa.name]) or b.facing != _centre_facing(by[pb.name]):
                             continue
+                        if _beyond_centre(by[pa.name], a) or _beyond_centre(by[pb.name], b):
+                            continue  # a vent's or a lap's extension: lapped over its twin, not sewn to it
                         conf += 0.3
                         reasons.append("mirrored pair")
                     elif {by[pa.name].role, by[pb.name].role} == {"front", "back"}:
@@ -430,7 +698,12 @@ def ring_order(panels: list[_Panel], seams: list[Suggestion]) -> list[str]:
     (a panel's right side sewn to the next one's left); panels the chain
     misses are put in by role."""
     torso = [
-        p for p in panels if p.role not in ("sleeve", "waistband", "collar", "cuff", "binding", "pocket", "facing")
+        p
+        for p in panels
+        if p.role not in ("sleeve", "waistband", "collar", "cuff", "binding", "pocket", "facing")
+        and not p.leg
+        and not p.arm
+        and (p.role or max(np.ptp(p.outline[:, 0]), np.ptp(p.outline[:, 1])) >= SMALL_PIECE)
     ]
     if not torso:
         return []
@@ -460,6 +733,86 @@ def ring_order(panels: list[_Panel], seams: list[Suggestion]) -> list[str]:
         order.append(nxt[order[-1]])
     rest = sorted((p for p in torso if p.name not in order), key=angle)
     return order + [p.name for p in rest]
+
+
+BAND_SLACK = 0.10
+"""a waistband's long edge may differ from the waist it is sewn to by this fraction
+(longer: the rest, an overlap for the closure, stays free)"""
+
+
+BAND_REACH = 0.04
+"""[m] a waist edge lies within this of its panel's top"""
+
+
+def sew_band(panels: list[_Panel], seams: list[Suggestion], order: list[str]) -> tuple[list[Suggestion], float]:
+    """A waistband sewn to the garment's waist: the torso ring's free top
+    edges (between the darts, after every other seam), panel by panel round
+    the body from the opening (between a mirrored pair of backs, else of
+    fronts, else at the first panel's start), each sewn to a part of the
+    band's long lower edge as long as it (the band split there; an overlap
+    left at its end stays free). Marks the band; returns the seams and the
+    opening's angle [rad] round the ring from the ring's start."""
+    bands = [p for p in panels if p.role == "waistband" and p.name not in order and not p.leg]
+    if len(bands) != 1 or not order:
+        return [], 0.0
+    band = bands[0]
+    by = {p.name: p for p in panels}
+    used = {(s.a_panel, s.a_segment) for s in seams} | {(s.b_panel, s.b_segment) for s in seams}
+    start = 0
+    for role in ("back", "front"):
+        for i, n in enumerate(order):
+            prev = order[i - 1]
+            if by[n].role == role and by[prev].twin == n:
+                start = i
+                break
+        else:
+            continue
+        break
+    ring = order[start:] + order[:start]
+    waist: list[_Seg] = []
+    for n in ring:
+        y0 = float(by[n].outline[:, 1].max())
+        # the waist line: free top edges at the panel's top (not a vent's step further down)
+        top = [
+            g
+            for g in _segments(by[n])
+            if g.facing == "top" and (n, g.name) not in used and g.pts[:, 1].min() > y0 - BAND_REACH
+        ]
+        waist += sorted(top, key=lambda g: float(g.pts[:, 0].mean()))  # material x runs with the angle
+    W = sum(g.length for g in waist)
+    S = _segments(band)
+    lows = [i for i, g in enumerate(S) if g.facing == "bottom"]
+    if not waist or not lows:
+        return [], 0.0
+    k = max(lows, key=lambda i: S[i].length)
+    B = S[k].length
+    if not (1 - BAND_SLACK) * W <= B <= (1 + BAND_SLACK) * W:
+        return [], 0.0
+    scale = min(1.0, B / W)
+    for g in waist[:-1] if B <= W else waist:  # split off each waist piece's length, from the band's start
+        _split(band, k, g.length * scale)
+        k += 1
+    S = _segments(band)
+    first = k - (len(waist) - 1 if B <= W else len(waist))
+    out = []
+    for j, g in enumerate(waist):
+        h = S[first + j]
+        out.append(
+            Suggestion(
+                band.name,
+                h.name,
+                g.panel,
+                g.name,
+                0.8,
+                f"waistband to the waist ({j + 1} of {len(waist)})",
+                h.length,
+                g.length,
+            )
+        )
+    band.band = True
+    w = [float(np.ptp(by[n].outline[:, 0])) for n in order]
+    # the opening's angle from the first ring panel's start edge
+    return out, 2 * math.pi * sum(w[:start]) / max(sum(w), 1e-9)
 
 
 def is_top(panels: list[_Panel]) -> bool:
@@ -499,7 +852,7 @@ def _halves_unfolded(pieces: list[ImportedPiece], body: str, notes: list[str]) -
 
     from couture.bodies import measured
 
-    torso = [p for p in pieces if role_of(p.name) not in _NOT_TORSO]
+    torso = [p for p in pieces if piece_role(p) not in _NOT_TORSO and not _small(p)]
     if not torso:
         return pieces
     girth = sum(
@@ -523,6 +876,106 @@ def _halves_unfolded(pieces: list[ImportedPiece], body: str, notes: list[str]) -
     return [replace(p, on_fold=True) if id(p) in ids else p for p in pieces]
 
 
+SLEEVE_CAP = 0.08
+"""[m] a piece whose top rises at least this high (and 0.1 of its width) above
+its top corners, in the middle of a left-right symmetric outline, is a sleeve
+(its cap); a whole bodice or skirt panel dips or lies flat there"""
+SYMMETRY = 0.02
+"""[m] how far a symmetric outline's mirror image may lie from it"""
+SMALL_PIECE = 0.30
+"""[m] unnamed pieces whose height and width are both under this (a facing, a
+binding, a pocket) get no role from their shape"""
+
+
+def _small(pc: ImportedPiece) -> bool:
+    """An unnamed piece under ``SMALL_PIECE`` both ways (a facing, a binding): no bodice part."""
+    return not piece_role(pc) and max(np.ptp(pc.sew[:, 0]), np.ptp(pc.sew[:, 1])) < SMALL_PIECE
+
+
+def _is_sleeve_shape(P: np.ndarray) -> bool:
+    """A sleeve's outline: symmetric about its vertical centre line, its
+    highest point (the cap top) in the middle, ``SLEEVE_CAP`` above the ends
+    of the cap (the outline's corners nearest the top left and top right)."""
+    P = resample(P, find_corners(P), 0.005)[0]  # evenly spaced: a straight side has two vertices as drawn
+    W = float(np.ptp(P[:, 0]))
+    xc = 0.5 * (P[:, 0].min() + P[:, 0].max())
+    M = P.copy()
+    M[:, 0] = 2 * xc - M[:, 0]
+    d = np.sqrt(((M[:, None, :] - P[None, :, :]) ** 2).sum(-1)).min(axis=1)
+    if d.max() > SYMMETRY:
+        return False
+    top = int(np.argmax(P[:, 1]))
+    if abs(P[top, 0] - xc) > 0.15 * W:
+        return False
+    corners = find_corners(P)
+    left = [c for c in corners if P[c, 0] < xc - 0.25 * W]
+    right = [c for c in corners if P[c, 0] > xc + 0.25 * W]
+    if not left or not right:
+        return False
+    ends = min(max(P[left, 1]), max(P[right, 1]))
+    return bool(P[top, 1] - ends >= max(SLEEVE_CAP, 0.1 * W))
+
+
+def _neck_depth(pc: ImportedPiece) -> float:
+    """[m] how far below the piece's top its outline meets its centre line
+    (the fold edge of a half cut on the fold, else the middle): a front's
+    neckline is the deeper one."""
+    P = pc.sew
+    if pc.on_fold:
+        xc = P[:, 0].min() if centre_at_min_x(pc) else P[:, 0].max()
+    else:
+        xc = 0.5 * (P[:, 0].min() + P[:, 0].max())
+    near = np.abs(P[:, 0] - xc) < 0.01
+    return float(P[:, 1].max() - P[near, 1].max()) if near.any() else 0.0
+
+
+def roles_by_shape(pieces: list[ImportedPiece], notes: list[str]) -> list[ImportedPiece]:
+    """The pieces, those whose names say nothing ('Detail_2', 'piece1')
+    given a role by their shape: a sleeve (:func:`_is_sleeve_shape`); of two
+    bodice pieces left, once halves are unfolded, the one with the deeper
+    neckline the front (by more than 5 cm, else nothing is said). Pieces
+    smaller than ``SMALL_PIECE`` both ways get none. A sleeve given once is
+    cut as a pair (a left and a right)."""
+    from dataclasses import replace
+
+    out = []
+    for pc in pieces:
+        small = max(np.ptp(pc.sew[:, 0]), np.ptp(pc.sew[:, 1])) < SMALL_PIECE
+        if not piece_role(pc) and not small and _is_sleeve_shape(pc.sew):
+            notes.append(f"{pc.name}: a sleeve by its shape (a symmetric piece with a cap on top)")
+            pc = replace(pc, role="sleeve")
+        if piece_role(pc) == "sleeve" and pc.cut_count < 2 and not pc.on_fold:
+            notes.append(f"{pc.name}: a sleeve given once, cut as a pair (a left and a right)")
+            pc = replace(pc, cut_count=2, mirrored=True)
+        out.append(pc)
+    return out
+
+
+def fronts_by_neckline(pieces: list[ImportedPiece], notes: list[str]) -> list[ImportedPiece]:
+    """Of exactly two unnamed bodice pieces (no role, not small), the one whose
+    neckline is deeper by more than 5 cm becomes the front, the other the back."""
+    from dataclasses import replace
+
+    unnamed = [
+        i
+        for i, pc in enumerate(pieces)
+        if not piece_role(pc) and max(np.ptp(pc.sew[:, 0]), np.ptp(pc.sew[:, 1])) >= SMALL_PIECE
+    ]
+    if len(unnamed) != 2:
+        return pieces
+    (i, a), (j, b) = ((k, _neck_depth(pieces[k])) for k in unnamed)
+    if abs(a - b) <= 0.05:
+        return pieces
+    front, back = (i, j) if a > b else (j, i)
+    notes.append(
+        f"{pieces[front].name}: the front, {pieces[back].name}: the back (necklines {max(a, b) * 100:.0f} and "
+        f"{min(a, b) * 100:.0f} cm deep at the centre)"
+    )
+    out = list(pieces)
+    out[front], out[back] = replace(out[front], role="front"), replace(out[back], role="back")
+    return out
+
+
 def build_design(
     pieces: list[ImportedPiece],
     *,
@@ -544,7 +997,9 @@ def build_design(
     if not kept:
         raise PatternError("pieces", f"no pieces left to import (all of {[p.name for p in pieces]} excluded)")
     notes: list[str] = []
+    kept = roles_by_shape(kept, notes)
     kept = _halves_unfolded(kept, body, notes)
+    kept = fronts_by_neckline(kept, notes)
     panels = panels_of(kept)
     seams = [s for s in suggest_seams(panels) if s.confidence >= min_confidence]
     order = ring_order(panels, seams)
@@ -562,9 +1017,32 @@ def build_design(
     if order and by[order[0]].side:
         w = [np.ptp(by[n].outline[:, 0]) for n in order]
         angle0 = float(math.pi * w[0] / max(sum(w), 1e-9))
+    band_seams, opening = ([], 0.0) if lm != "waist" else sew_band(panels, seams, order)
+    seams += band_seams
+    rings = {n: "torso" for n in pos}
+    for p in panels:
+        if p.leg:
+            # a leg's ring runs front, outer side, back (left leg) or back, outer side, front (right leg)
+            rings[p.name] = f"{p.leg}_leg"
+            pos[p.name] = int((p.role == "back") == (p.leg == "left"))
+        elif p.arm:
+            rings[p.name], pos[p.name] = f"{p.arm}_arm", 0
+        elif p.band:
+            rings[p.name], pos[p.name] = "band", 0
+    for kind in ("left_leg", "right_leg", "left_arm", "right_arm"):
+        on = sorted((n for n, r in rings.items() if r == kind), key=lambda n: pos[n])
+        if on:
+            notes.append(f"placed round the {kind.replace('_', ' ')}: {' -> '.join(on)}")
+    band_angle = 0.0
+    if band_seams:
+        # the band starts at the opening and runs round with the angle: its centre half its length on
+        w = [float(np.ptp(by[n].outline[:, 0])) for n in order]
+        start = angle0 - math.pi * w[0] / max(sum(w), 1e-9) + opening
+        b = next(p for p in panels if p.band)
+        band_angle = float(start + math.pi * np.ptp(b.outline[:, 0]) / max(sum(w), 1e-9))
+        notes.append(f"{b.name} sewn to the waist in {len(band_seams)} parts, round the body from the opening")
     out_pieces = []
     for p in panels:
-        ringed = p.name in pos
         out_pieces.append(
             Piece(
                 name=p.name,
@@ -575,10 +1053,10 @@ def build_design(
                 role=p.role,
                 source=p.source,
                 placement=PiecePlacement(
-                    ring="torso" if ringed else "flat",
+                    ring=rings.get(p.name, "flat"),  # type: ignore[arg-type]
                     position=pos.get(p.name, 0),
-                    angle=angle0,
-                    height=height,
+                    angle=angle0 if rings.get(p.name) == "torso" else (band_angle if p.band else 0.0),
+                    height=height + float(np.ptp(p.outline[:, 1])) if p.band else height,
                 ),
             )
         )

@@ -37,4 +37,12 @@ for f in Keiko_skirt TShirt_test; do
     cp "$SCRATCH/val/${f}_${fmt%%:*}_1.dxf" "$DATA/valentina/${f}_${fmt##*:}.dxf"
   done
 done
+# Keiko's measurements (keiko.vit, cm) as a FreeSewing-named set (mm) for `couture import --body`
+python3 - "$C/keiko.vit" "$DATA/valentina/keiko.json" <<'PY'
+import json, sys, xml.etree.ElementTree as ET
+m = {e.get("name"): float(e.get("value")) for e in ET.parse(sys.argv[1]).iter("m")}
+names = {"chest": "bust_circ", "waist": "waist_circ", "seat": "hip_circ"}
+out = {k: round(10 * m[v]) for k, v in names.items()}
+open(sys.argv[2], "w").write(json.dumps(out) + "\n")
+PY
 echo "fixtures written under $DATA"
