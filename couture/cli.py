@@ -306,7 +306,14 @@ def _parser() -> argparse.ArgumentParser:
         choices=["waist", "shoulder"],
         help="where the pieces' tops go (default: shoulder for a top with sleeves/collar, else waist)",
     )
-    im.add_argument("--exclude", nargs="+", default=[], metavar="PIECE", help="pieces to leave out (e.g. waistband)")
+    im.add_argument(
+        "--exclude",
+        nargs="+",
+        action="extend",
+        default=[],
+        metavar="PIECE",
+        help="pieces to leave out (e.g. waistband)",
+    )
     im.add_argument(
         "--stretch-stiffness",
         type=float,
@@ -486,7 +493,11 @@ def import_pattern(args: argparse.Namespace) -> int:
         print(f"body: {body_note}")
     for note in rep.notes:
         print(f"note: {note}")
-    print(f"placement: round the torso from the front: {' -> '.join(rep.order) or '-'}; tops at the {rep.landmark}")
+    rings: dict[str, list[str]] = {}
+    for pc in sorted(design.pieces, key=lambda pc: pc.placement.position):
+        rings.setdefault(pc.placement.ring, []).append(pc.name)
+    where = "; ".join(f"{ring.replace('_', ' ')}: {' -> '.join(names)}" for ring, names in rings.items())
+    print(f"placement (round each ring from the front): {where or '-'}; tops at the {rep.landmark}")
     print(f"seams suggested ({len(rep.seams)}, sewn at confidence >= {args.min_confidence:g}):")
     for sm in rep.seams:
         print(

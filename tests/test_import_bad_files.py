@@ -209,3 +209,13 @@ def test_random_svg_imports_or_says_why(tmp_path, paths, unit):
         assert str(f) in str(e)
         return
     _check_pieces(pieces)
+
+
+def test_exclude_collects_every_flag_and_every_name():
+    """`--exclude A --exclude B` leaves out both (an `--exclude` per piece kept
+    only the last), as does `--exclude A B`."""
+    from couture.cli import _parser
+
+    for argv in (["--exclude", "a", "--exclude", "b"], ["--exclude", "a", "b"]):
+        args = _parser().parse_args(["import", "x.svg", "--out", "y.json", *argv])
+        assert args.exclude == ["a", "b"], argv
