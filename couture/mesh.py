@@ -31,6 +31,11 @@ class GarmentMesh:
     """panel index of each triangle, shape (m,), int32; None: all in panel 0"""
     panel_names: list[str] = field(default_factory=list)
     """panel names, indexed by ``tri_panel``"""
+    panel_grain: np.ndarray = None  # type: ignore[assignment]
+    """[rad] each panel's grain (``Panel.grain``: the warp's angle from material
+    +y, counter-clockwise; 0 straight grain, pi/4 bias), indexed by
+    ``tri_panel``, shape (p,), float64, p = the number of panels
+    (``n_panels``); None: every panel on the straight grain (0)"""
     seam_emitters: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     """emitting vertex of each seam spring, shape (k,), int32"""
     seam_edges: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int32))
@@ -61,6 +66,13 @@ class GarmentMesh:
         if self.tri_panel is None:
             self.tri_panel = np.zeros(len(self.tris), np.int32)
         self.tri_panel = np.ascontiguousarray(self.tri_panel, dtype=np.int32)
+        if self.panel_grain is None or len(self.panel_grain) == 0:
+            self.panel_grain = np.zeros(self.n_panels)
+        self.panel_grain = np.ascontiguousarray(self.panel_grain, dtype=np.float64).reshape(-1)
+        if len(self.panel_grain) != self.n_panels:
+            raise ValueError(f"GarmentMesh.panel_grain has {len(self.panel_grain)} values for {self.n_panels} panels")
+        if not np.all(np.isfinite(self.panel_grain)):
+            raise ValueError("GarmentMesh.panel_grain must be finite angles [rad]")
         self.seam_emitters = np.ascontiguousarray(self.seam_emitters, dtype=np.int32)
         self.seam_edges = np.ascontiguousarray(self.seam_edges, dtype=np.int32).reshape(-1, 2)
         self.seam_weights = np.ascontiguousarray(self.seam_weights, dtype=np.float64)
@@ -75,6 +87,18 @@ class GarmentMesh:
     @property
     def n_triangles(self) -> int:
         return len(self.tris)
+
+    @property
+    def n_panels(self) -> int:
+        """len(panel_names), or for an unnamed mesh 1 + the largest ``tri_panel``"""
+        top = int(self.tri_panel.max()) + 1 if len(self.tri_panel) else 0
+        return max(len(self.panel_names), top)
+
+    def warp_directions(self) -> np.ndarray:
+        """(m, 2) unit warp direction of every triangle in material space,
+        (-sin g, cos g) for its panel's grain g (the weft is (cos g, sin g))."""
+        g = self.panel_grain[self.tri_panel]
+        return np.column_stack([-np.sin(g), np.cos(g)])
 
 
 def grid_sheet(width: float, height: float, nx: int, ny: int, *, jitter: float = 0.0, seed: int = 0) -> GarmentMesh:

@@ -36,6 +36,8 @@ def mesh_to_msg(
         tris=_wire("tris", mesh.tris),
         tri_panel=_wire("tri_panel", mesh.tri_panel),
         panel_names=list(mesh.panel_names),
+        # [] for an all-straight-grain mesh keeps its message as before
+        panel_grain=[float(g) for g in mesh.panel_grain] if np.any(mesh.panel_grain) else [],
         seam_emitters=_wire("seam_emitters", mesh.seam_emitters),
         seam_edges=_wire("seam_edges", mesh.seam_edges.reshape(-1, 2)),
         seam_weights=_wire("seam_weights", mesh.seam_weights),
@@ -55,6 +57,7 @@ def msg_to_mesh(msg: MeshMsg) -> GarmentMesh:
         x0=msg.x0.numpy().copy(),
         tri_panel=msg.tri_panel.numpy().copy(),
         panel_names=list(msg.panel_names),
+        panel_grain=np.array(msg.panel_grain, dtype=np.float64),  # [] (an older message): all 0
         seam_emitters=msg.seam_emitters.numpy().copy(),
         seam_edges=msg.seam_edges.numpy().copy(),
         seam_weights=msg.seam_weights.numpy().copy(),

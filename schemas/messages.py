@@ -15,6 +15,7 @@ filled by the bus publisher when left at 0.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal, TypeVar, overload
@@ -197,6 +198,9 @@ class MeshMsg(Message, kw_only=True):
     """panel index of each triangle, shape (m,), int32"""
     panel_names: list[str] = []
     """panel names indexed by tri_panel"""
+    panel_grain: list[float] = []
+    """[rad] each panel's grain (warp from material +y, counter-clockwise),
+    indexed by tri_panel; [] (an older message): every panel 0, straight grain"""
     seam_emitters: Array
     """emitting vertex of each seam spring, shape (k,), int32"""
     seam_edges: Array
@@ -221,6 +225,14 @@ class MeshMsg(Message, kw_only=True):
         tp = self.tri_panel.numpy()
         if self.panel_names and tp.size and (tp.min() < 0 or tp.max() >= len(self.panel_names)):
             raise SchemaError(f"{self.TYPE}: field `$.tri_panel`: panel index outside [0, {len(self.panel_names)})")
+        if self.panel_grain:
+            n_panels = max(len(self.panel_names), int(tp.max()) + 1 if tp.size else 0)
+            if len(self.panel_grain) != n_panels:
+                raise SchemaError(
+                    f"{self.TYPE}: field `$.panel_grain`: {len(self.panel_grain)} angles for {n_panels} panels"
+                )
+            if not all(math.isfinite(g) for g in self.panel_grain):
+                raise SchemaError(f"{self.TYPE}: field `$.panel_grain`: angles must be finite [rad]")
 
 
 class PsiMsg(Message, kw_only=True):

@@ -239,6 +239,7 @@ def with_rest(mesh: GarmentMesh, X: np.ndarray, x0: np.ndarray | None = None) ->
         x0=mesh.x0 if x0 is None else x0,
         tri_panel=mesh.tri_panel,
         panel_names=list(mesh.panel_names),
+        panel_grain=mesh.panel_grain,
         seam_emitters=mesh.seam_emitters,
         seam_edges=mesh.seam_edges,
         seam_weights=mesh.seam_weights,

@@ -529,6 +529,342 @@ def bending_dX_blocks(x, X, st, coef0, bend_slots, data):
                         data[slot, c, k] -= dP[a, c]
 
 
+# --------------------------------------------------------------------------
+# orthotropic (per-triangle) StVK membrane: psi = 1/2 v.C v, v = (E00, E11, 2 E01)
+# --------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _stress_ortho(F, C, t, E, S):
+    """Green strain E and 2nd Piola-Kirchhoff stress S (2x2) of triangle t with
+    the plane elasticity C[t] (3, 3) [N/m] in Voigt form on the material axes,
+    v = (E00, E11, 2 E01), S = (S00, S11, S01) = C v; returns psi = 1/2 v.C v [J/m²]."""
+    for k in range(2):
+        for l in range(2):
+            c = 0.0
+            for i in range(3):
+                c += F[i, k] * F[i, l]
+            E[k, l] = 0.5 * (c - (1.0 if k == l else 0.0))
+    v0 = E[0, 0]
+    v1 = E[1, 1]
+    v2 = 2.0 * E[0, 1]
+    s0 = C[t, 0, 0] * v0 + C[t, 0, 1] * v1 + C[t, 0, 2] * v2
+    s1 = C[t, 1, 0] * v0 + C[t, 1, 1] * v1 + C[t, 1, 2] * v2
+    s2 = C[t, 2, 0] * v0 + C[t, 2, 1] * v1 + C[t, 2, 2] * v2
+    S[0, 0] = s0
+    S[1, 1] = s1
+    S[0, 1] = s2
+    S[1, 0] = s2
+    return 0.5 * (v0 * s0 + v1 * s1 + v2 * s2)
+
+
+@njit(cache=True)
+def membrane_ortho_energy(x, tris, Dminv, area, C):
+    """Orthotropic membrane energy W [J] (per-triangle C (m, 3, 3), ``_stress_ortho``)."""
+    b = np.empty((3, 2))
+    F = np.empty((3, 2))
+    E = np.empty((2, 2))
+    S = np.empty((2, 2))
+    e = 0.0
+    for t in range(tris.shape[0]):
+        _shape_vectors(Dminv, t, b)
+        _deformation(x, tris, t, b, F)
+        e += area[t] * _stress_ortho(F, C, t, E, S)
+    return e
+
+
+@njit(cache=True)
+def membrane_ortho_forces(x, tris, Dminv, area, C, f):
+    """f (n, 3) += -dW/dx of the orthotropic membrane; returns W [J]."""
+    b = np.empty((3, 2))
+    F = np.empty((3, 2))
+    E = np.empty((2, 2))
+    S = np.empty((2, 2))
+    FS = np.empty((3, 2))
+    e = 0.0
+    for t in range(tris.shape[0]):
+        _shape_vectors(Dminv, t, b)
+        _deformation(x, tris, t, b, F)
+        A = area[t]
+        e += A * _stress_ortho(F, C, t, E, S)
+        for i in range(3):
+            for k in range(2):
+                FS[i, k] = F[i, 0] * S[0, k] + F[i, 1] * S[1, k]
+        for a in range(3):
+            v = tris[t, a]
+            for i in range(3):
+                f[v, i] -= A * (FS[i, 0] * b[a, 0] + FS[i, 1] * b[a, 1])
+    return e
+
+
+@njit(cache=True, inline="always")
+def _membrane_ortho_setup(x, tris, Dminv, C, t, project, b, F, E, S, Sp, B):
+    """Shape vectors b, S (Sp: its positive part with ``project``) and the
+    strain Jacobians B[a] (3 Voigt rows, 3 coordinates) = dv/dx_a of triangle t."""
+    _shape_vectors(Dminv, t, b)
+    _deformation(x, tris, t, b, F)
+    _stress_ortho(F, C, t, E, S)
+    if project:
+        _clamp_psd_2x2(S, Sp)
+    else:
+        Sp[:, :] = S
+    for a in range(3):
+        for i in range(3):
+            B[a, 0, i] = F[i, 0] * b[a, 0]
+            B[a, 1, i] = F[i, 1] * b[a, 1]
+            B[a, 2, i] = F[i, 0] * b[a, 1] + F[i, 1] * b[a, 0]
+
+
+@njit(cache=True, inline="always")
+def _membrane_ortho_block(b, Sp, B, C, t, A, a, c, blk):
+    """blk (3, 3) = H_ac = A [ (b_a^T S b_c) I + B_a^T C B_c ]: the material
+    part is PSD for a positive definite C (every x); only the geometric term
+    can be indefinite, in compression (``_membrane_hessian_block``)."""
+    g = A * (b[a, 0] * (Sp[0, 0] * b[c, 0] + Sp[0, 1] * b[c, 1]) + b[a, 1] * (Sp[1, 0] * b[c, 0] + Sp[1, 1] * b[c, 1]))
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for p in range(3):
+                cb = C[t, p, 0] * B[c, 0, j] + C[t, p, 1] * B[c, 1, j] + C[t, p, 2] * B[c, 2, j]
+                acc += B[a, p, i] * cb
+            blk[i, j] = A * acc
+        blk[i, i] += g
+
+
+@njit(cache=True)
+def membrane_ortho_element_hessians(x, tris, Dminv, area, C, project, out):
+    """out (m, 9, 9): every orthotropic element Hessian, vertex-major (3a+i)."""
+    b = np.empty((3, 2))
+    F = np.empty((3, 2))
+    E = np.empty((2, 2))
+    S = np.empty((2, 2))
+    Sp = np.empty((2, 2))
+    B = np.empty((3, 3, 3))
+    blk = np.empty((3, 3))
+    for t in range(tris.shape[0]):
+        _membrane_ortho_setup(x, tris, Dminv, C, t, project, b, F, E, S, Sp, B)
+        for a in range(3):
+            for c in range(3):
+                _membrane_ortho_block(b, Sp, B, C, t, area[t], a, c, blk)
+                for i in range(3):
+                    for j in range(3):
+                        out[t, 3 * a + i, 3 * c + j] = blk[i, j]
+
+
+@njit(cache=True)
+def membrane_ortho_stiffness(x, tris, Dminv, area, C, project, tri_slots, blk_base, blk_stride, data):
+    """data += orthotropic membrane Hessian (PSD-projected if ``project``), as
+    ``membrane_stiffness``."""
+    b = np.empty((3, 2))
+    F = np.empty((3, 2))
+    E = np.empty((2, 2))
+    S = np.empty((2, 2))
+    Sp = np.empty((2, 2))
+    B = np.empty((3, 3, 3))
+    blk = np.empty((3, 3))
+    for t in range(tris.shape[0]):
+        _membrane_ortho_setup(x, tris, Dminv, C, t, project, b, F, E, S, Sp, B)
+        for a in range(3):
+            for c in range(a, 3):
+                _membrane_ortho_block(b, Sp, B, C, t, area[t], a, c, blk)
+                s = tri_slots[t, a, c]
+                base = blk_base[s]
+                st = blk_stride[s]
+                for i in range(3):
+                    for j in range(3):
+                        data[base + i * st + j] += blk[i, j]
+                if c != a:
+                    s = tri_slots[t, c, a]
+                    base = blk_base[s]
+                    st = blk_stride[s]
+                    for i in range(3):
+                        for j in range(3):
+                            data[base + i * st + j] += blk[j, i]
+
+
+@njit(cache=True, inline="always")
+def _membrane_ortho_dforce(x, tris, t, A, dA, C, b, F, S, dDi, db, dF, dE, dS, dP):
+    """``_membrane_dforce`` with dS = C dE (Voigt, per triangle)."""
+    db[1, 0], db[1, 1] = dDi[0, 0], dDi[0, 1]
+    db[2, 0], db[2, 1] = dDi[1, 0], dDi[1, 1]
+    db[0, 0], db[0, 1] = -db[1, 0] - db[2, 0], -db[1, 1] - db[2, 1]
+    _deformation(x, tris, t, db, dF)
+    for k in range(2):
+        for l in range(2):
+            c = 0.0
+            for i in range(3):
+                c += F[i, k] * dF[i, l] + dF[i, k] * F[i, l]
+            dE[k, l] = 0.5 * c
+    v0, v1, v2 = dE[0, 0], dE[1, 1], 2.0 * dE[0, 1]
+    dS[0, 0] = C[t, 0, 0] * v0 + C[t, 0, 1] * v1 + C[t, 0, 2] * v2
+    dS[1, 1] = C[t, 1, 0] * v0 + C[t, 1, 1] * v1 + C[t, 1, 2] * v2
+    dS[0, 1] = C[t, 2, 0] * v0 + C[t, 2, 1] * v1 + C[t, 2, 2] * v2
+    dS[1, 0] = dS[0, 1]
+    for a in range(3):
+        for i in range(3):
+            acc = 0.0
+            for k in range(2):
+                Sb = S[k, 0] * b[a, 0] + S[k, 1] * b[a, 1]
+                dSb = dS[k, 0] * b[a, 0] + dS[k, 1] * b[a, 1]
+                Sdb = S[k, 0] * db[a, 0] + S[k, 1] * db[a, 1]
+                acc += dA * F[i, k] * Sb + A * (dF[i, k] * Sb + F[i, k] * dSb + F[i, k] * Sdb)
+            dP[a, i] = acc
+
+
+@njit(cache=True)
+def membrane_ortho_dforces_dX(x, X, dX, tris, Dminv, area, C, df):
+    """df (n, 3) += d/de f_membrane(x; X + e dX) at e = 0 of the orthotropic
+    membrane (C is fixed to the material: the grain does not move with X)."""
+    b, db, F, dF, E, S, dE, dS, dDm, dDi, tmp, dP = _membrane_dforce_scratch()
+    for t in range(tris.shape[0]):
+        i0, i1, i2 = tris[t, 0], tris[t, 1], tris[t, 2]
+        for k in range(2):
+            dDm[k, 0] = dX[i1, k] - dX[i0, k]
+            dDm[k, 1] = dX[i2, k] - dX[i0, k]
+        A = area[t]
+        dA = _rest_shape_change(Dminv, t, A, dDm, tmp, dDi)
+        _shape_vectors(Dminv, t, b)
+        _deformation(x, tris, t, b, F)
+        _stress_ortho(F, C, t, E, S)
+        _membrane_ortho_dforce(x, tris, t, A, dA, C, b, F, S, dDi, db, dF, dE, dS, dP)
+        for a in range(3):
+            v = tris[t, a]
+            for i in range(3):
+                df[v, i] -= dP[a, i]
+
+
+@njit(cache=True)
+def membrane_ortho_gravity_dX_blocks(x, tris, Dminv, area, C, membrane, rho_g3, tri_slots, data):
+    """``membrane_gravity_dX_blocks`` for the orthotropic membrane (if
+    ``membrane``) and a per-triangle gravity weight ``rho_g3`` (m,) = ρ_t g / 3."""
+    b, db, F, dF, E, S, dE, dS, dDm, dDi, tmp, dP = _membrane_dforce_scratch()
+    g = np.empty((4, 3, 3))
+    for t in range(tris.shape[0]):
+        A = area[t]
+        _shape_vectors(Dminv, t, b)
+        _deformation(x, tris, t, b, F)
+        _stress_ortho(F, C, t, E, S)
+        for p in range(4):
+            dDm[:, :] = 0.0
+            dDm[p // 2, p % 2] = 1.0
+            dA = _rest_shape_change(Dminv, t, A, dDm, tmp, dDi)
+            for a in range(3):
+                for i in range(3):
+                    g[p, a, i] = 0.0
+                g[p, a, 1] -= rho_g3[t] * dA
+            if not membrane:
+                continue
+            _membrane_ortho_dforce(x, tris, t, A, dA, C, b, F, S, dDi, db, dF, dE, dS, dP)
+            for a in range(3):
+                for i in range(3):
+                    g[p, a, i] -= dP[a, i]
+        for a in range(3):
+            for c in range(3):
+                s = tri_slots[t, a, c]
+                for k in range(2):
+                    if c == 0:
+                        for i in range(3):
+                            data[s, i, k] -= g[2 * k, a, i] + g[2 * k + 1, a, i]
+                    else:
+                        for i in range(3):
+                            data[s, i, k] += g[2 * k + c - 1, a, i]
+
+
+# --------------------------------------------------------------------------
+# directional bending: a stiffness per hinge from its direction to the grain
+# --------------------------------------------------------------------------
+
+
+@njit(cache=True, inline="always")
+def _hinge_stiffness(X, st, e, law, warp, d0x, d0y, d1x, d1y):
+    """(k, dk): stencil e's bending stiffness [N m] and its derivative along
+    the rest motion (d0x, d0y), (d1x, d1y) of its hinge's two vertices.
+
+    k = (p0 + p1 u + p2 u²) / (q0 + q1 u + q2 u²), law[e] = (p0, p1, p2, q0,
+    q1, q2) (``couture.cloth.material.hinge_law``), u = sin²θ = (t·w)², θ the
+    angle between the strip axis (the hinge's in-plane normal) and the warp
+    warp[e] (unit, material space), t the hinge's unit tangent."""
+    i0, i1 = st[e, 0], st[e, 1]
+    ex = X[i1, 0] - X[i0, 0]
+    ey = X[i1, 1] - X[i0, 1]
+    le = np.sqrt(ex * ex + ey * ey)
+    tx, ty = ex / le, ey / le
+    wx, wy = warp[e, 0], warp[e, 1]
+    tw = tx * wx + ty * wy
+    u = tw * tw
+    num = law[e, 0] + u * (law[e, 1] + u * law[e, 2])
+    den = law[e, 3] + u * (law[e, 4] + u * law[e, 5])
+    k = num / den
+    dex, dey = d1x - d0x, d1y - d0y
+    tde = tx * dex + ty * dey
+    dtw = ((dex - tx * tde) * wx + (dey - ty * tde) * wy) / le
+    du = 2.0 * tw * dtw
+    dnum = law[e, 1] + 2.0 * u * law[e, 2]
+    dden = law[e, 4] + 2.0 * u * law[e, 5]
+    return k, (dnum - k * dden) / den * du
+
+
+@njit(cache=True)
+def hinge_stiffness(X, st, law, warp, out):
+    """out (e,) = every stencil's bending stiffness [N m] (``_hinge_stiffness``)."""
+    for e in range(st.shape[0]):
+        out[e] = _hinge_stiffness(X, st, e, law, warp, 0.0, 0.0, 0.0, 0.0)[0]
+
+
+@njit(cache=True, inline="always")
+def _bending_var_dforce(x, st, e, coef0, dcoef, fac, dfac, w, dw, dP):
+    """``_bending_dforce`` with a coefficient c = coef0 that changes by dcoef."""
+    for c in range(3):
+        s = 0.0
+        ds = 0.0
+        for a in range(4):
+            s += w[a] * x[st[e, a], c]
+            ds += dw[a] * x[st[e, a], c]
+        for a in range(4):
+            dP[a, c] = coef0 * (dfac * w[a] * s + fac * (dw[a] * s + w[a] * ds)) + dcoef * fac * w[a] * s
+
+
+@njit(cache=True)
+def bending_var_dforces_dX(x, X, dX, st, law, warp, bend_constant, df):
+    """``bending_dforces_dX`` for per-hinge stiffness k_e (``_hinge_stiffness``):
+    f = -Σ_e c k_e fac_e K_e (K_e·x), c = ``bend_constant``; k_e depends on X
+    through the hinge's direction, differentiated with K and fac."""
+    w = np.empty(4)
+    dw = np.empty(4)
+    dP = np.empty((4, 3))
+    for e in range(st.shape[0]):
+        i0, i1, i2, i3 = st[e, 0], st[e, 1], st[e, 2], st[e, 3]
+        fac, dfac = bending_stencil_weights_dir(
+            X, st, e, dX[i0, 0], dX[i0, 1], dX[i1, 0], dX[i1, 1], dX[i2, 0], dX[i2, 1], dX[i3, 0], dX[i3, 1], w, dw
+        )
+        k, dk = _hinge_stiffness(X, st, e, law, warp, dX[i0, 0], dX[i0, 1], dX[i1, 0], dX[i1, 1])
+        _bending_var_dforce(x, st, e, bend_constant * k, bend_constant * dk, fac, dfac, w, dw, dP)
+        for c in range(3):
+            for a in range(4):
+                df[st[e, a], c] -= dP[a, c]
+
+
+@njit(cache=True)
+def bending_var_dX_blocks(x, X, st, law, warp, bend_constant, bend_slots, data):
+    """``bending_dX_blocks`` for per-hinge stiffness (``bending_var_dforces_dX``)."""
+    w = np.empty(4)
+    dw = np.empty(4)
+    dP = np.empty((4, 3))
+    d = np.zeros(8)
+    for e in range(st.shape[0]):
+        for q in range(4):
+            for k in range(2):
+                d[:] = 0.0
+                d[2 * q + k] = 1.0
+                fac, dfac = bending_stencil_weights_dir(X, st, e, d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], w, dw)
+                kh, dk = _hinge_stiffness(X, st, e, law, warp, d[0], d[1], d[2], d[3])
+                _bending_var_dforce(x, st, e, bend_constant * kh, bend_constant * dk, fac, dfac, w, dw, dP)
+                for a in range(4):
+                    slot = bend_slots[e, a, q]
+                    for c in range(3):
+                        data[slot, c, k] -= dP[a, c]
+
+
 @njit(cache=True)
 def scalar_to_block_diag(vals, blk_base, blk_stride, data):
     """data += vals (scalar CSR data) expanded as vals[s] * I3 per block."""

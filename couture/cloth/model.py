@@ -16,6 +16,14 @@ Material (plane stress, thin sheet; ``Fabric.stretch_stiffness`` is E·h [N/m]):
 membrane energy density psi = mu |G|² + lam/2 tr(G)² per unit rest area, G the
 Green strain ½(FᵀF - I) of the constant-strain triangle.
 
+Woven fabrics and per-panel fabrics (``couture.cloth.material``): an
+orthotropic fabric (warp, weft, shear stiffness) or panels of different
+membranes get psi = ½ vᵀ C_t v, v = (G_xx, G_yy, 2 G_xy), with each
+triangle's plane-stress orthotropic C_t turned to its panel's grain (term
+'membrane_orthotropic'); directional or per-panel bending gives each hinge
+its own k_b (k(θ) of the hinge's direction to the warp, so that a strip cut
+along warp, weft or bias bends with that rigidity) in the bending energy below. An isotropic fabric keeps the membrane above and one k_b.
+
 Bending (Bergou et al. 2006, isometric bending model): per interior edge
 stencil (x0, x1 on the edge, x2, x3 opposite) a weight vector K (4,) that
 annihilates every affine map of the flat rest pattern (flat and rigidly
@@ -56,6 +64,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from couture.cloth import kernels as K
+from couture.cloth.material import lame_parameters as lame_parameters  # re-exported: its home is material
+from couture.cloth.material import reference_lame, resolve
 from couture.mesh import GarmentMesh
 
 GRAVITY = 9.81
@@ -127,20 +137,21 @@ class Scene:
     friction_slip: float = 1e-3
     """[m] 'huber' friction: the tangential displacement from its anchor at which a
     vertex's friction reaches its Coulomb limit (its stiffness is limit/slip below)"""
-
-
-def lame_parameters(stretch_stiffness: float, poisson_ratio: float) -> tuple[float, float]:
-    """Plane-stress Lamé parameters (mu, lam) [N/m] from E·h [N/m] and nu."""
-    nu = poisson_ratio
-    mu = stretch_stiffness / (2.0 * (1.0 + nu))
-    lam = stretch_stiffness * nu / (1.0 - nu * nu)
-    return mu, lam
+    panel_fabrics: dict = field(default_factory=dict)
+    """panel name -> that panel's own fabric (``Design.panel_fabrics``); the
+    model's ``fabric`` covers every other panel (couture.cloth.material)"""
 
 
 def bending_stencils(tris: np.ndarray) -> np.ndarray:
     """(e, 4) int32 stencils (v0, v1, opp0, opp1) of the interior (two-triangle) edges.
 
     opp0 lies in the triangle where the edge runs v0 -> v1 counter-clockwise."""
+    return bending_stencils_and_triangles(tris)[0]
+
+
+def bending_stencils_and_triangles(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``bending_stencils`` and, for each stencil, the triangle holding v0 -> v1
+    counter-clockwise (the one opp0 is in), (e,) int64."""
     tris = np.asarray(tris)
     m = len(tris)
     a = tris.reshape(-1)
@@ -160,7 +171,7 @@ def bending_stencils(tris: np.ndarray) -> np.ndarray:
         same = same[cnt_ok]
     h0 = order[same]
     h1 = order[same + 1]
-    return np.column_stack([a[h0], b[h0], o[h0], o[h1]]).astype(np.int32)
+    return np.column_stack([a[h0], b[h0], o[h0], o[h1]]).astype(np.int32), (h0 // 3).astype(np.int64)
 
 
 def bending_weights(X: np.ndarray, stencils: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -243,7 +254,10 @@ class ClothModel:
     terms and the friction anchors (updated by ``update_friction``).
     """
 
-    ALL_TERMS = ("membrane", "bending", "gravity", "seams", "contact", "friction")
+    ALL_TERMS = ("membrane", "membrane_orthotropic", "bending", "gravity", "seams", "contact", "friction")
+    """'membrane' is the isotropic StVK membrane of one fabric; a garment with an
+    orthotropic fabric, or panels of different membranes or densities, gets
+    'membrane_orthotropic' (per-triangle elasticity, couture.cloth.material) instead"""
 
     def __init__(self, mesh: GarmentMesh, fabric, scene: Scene | None = None):
         scene = Scene() if scene is None else scene
@@ -252,13 +266,26 @@ class ClothModel:
         self.scene = scene
         self.n = mesh.n_vertices
         self.tris = mesh.tris
-        self.mu, self.lam = lame_parameters(fabric.stretch_stiffness, fabric.poisson_ratio)
+        # mu, lam, bend_stiffness and area_density: the design fabric's (for an
+        # orthotropic one, the isotropic fabric of its mean stiffness): what the
+        # default seam and contact stiffness, the residual floor and the
+        # sensitivity's bending floor scale with. The terms read ``material``.
+        self.mu, self.lam = reference_lame(fabric)
         self.bend_stiffness = float(fabric.bend_stiffness)
         self.area_density = float(fabric.area_density)
+        self.material = resolve(mesh, fabric, scene.panel_fabrics)
         self.free = np.ones(self.n, bool)
         self.free[mesh.pinned] = False
 
-        terms = ["membrane", "bending"]
+        self.membrane_term = "membrane_orthotropic" if self.material.orthotropic else "membrane"
+        self.bend_directional = self.material.directional_bending
+        if self.material.orthotropic:
+            self.elasticity = np.ascontiguousarray(self.material.elasticity())
+            """(m, 3, 3) Voigt elasticity [N/m] per triangle on the material axes"""
+            self.tri_density = self.material.density()
+        else:
+            self.tri_density = np.full(len(self.tris), self.area_density)
+        terms = [self.membrane_term, "bending"]
         if scene.gravity:
             terms.append("gravity")
         self.has_seams = bool(scene.seams and len(mesh.seam_emitters))
@@ -308,7 +335,11 @@ class ClothModel:
         self.friction_kinetic = float(getattr(fabric, "friction_kinetic", 0.3))
 
         # topology: stencils and the sparse pattern, built once per mesh
-        self.bend_stencils = bending_stencils(self.tris)
+        self.bend_stencils, bend_tris = bending_stencils_and_triangles(self.tris)
+        if self.bend_directional:
+            self.bend_dir, self.bend_warp = self.material.bending(bend_tris)
+            """(e, 6) hinge law (``material.hinge_law``) and (e, 2) unit warp of
+            every hinge (``kernels.hinge_stiffness``)"""
         if self.has_seams:
             self.seam_stencils = np.column_stack([mesh.seam_emitters, mesh.seam_edges]).astype(np.int32)
             w = mesh.seam_weights
@@ -350,19 +381,38 @@ class ClothModel:
         self.tri_area = np.empty(m)
         K.membrane_rest(self.X, self.tris, self.Dminv, self.tri_area)
         self.mass = np.zeros(self.n)
-        np.add.at(self.mass, self.tris.reshape(-1), np.repeat(self.tri_area * self.area_density / 3.0, 3))
+        np.add.at(self.mass, self.tris.reshape(-1), np.repeat(self.tri_area * self._rho / 3.0, 3))
         self._rebuild_constant()
 
+    @property
+    def _rho(self):
+        """area density [kg/m²]: the fabric's, or per triangle (m,) with several"""
+        return self.tri_density if self.material.orthotropic else self.area_density
+
     def set_bend_stiffness(self, bend_stiffness: float) -> None:
-        """Change k_b [N m] (e.g. the sensitivity node's stiffer floor) without a rebuild."""
+        """Set one k_b [N m] for every hinge (directions and panels dropped)
+        without a rebuild."""
         self.bend_stiffness = float(bend_stiffness)
+        self.bend_directional = False
         self._rebuild_constant()
+
+    def hinge_stiffness(self, X: np.ndarray | None = None) -> np.ndarray:
+        """(e,) bending stiffness [N m] of every hinge at rest shape X (default the model's)."""
+        if not self.bend_directional:
+            return np.full(len(self.bend_stencils), self.bend_stiffness)
+        X = self.X if X is None else np.ascontiguousarray(X, dtype=np.float64)
+        k = np.empty(len(self.bend_stencils))
+        K.hinge_stiffness(X, self.bend_stencils, self.bend_dir, self.bend_warp, k)
+        return k
 
     def _bend_vals(self, X: np.ndarray) -> np.ndarray:
         vals = np.zeros(len(self.pattern.indices))
         if len(self.bend_stencils):
             Kw, fac = bending_weights(X, self.bend_stencils)
-            coef = self.bend_stiffness * BEND_CONSTANT * fac
+            if self.bend_directional:
+                coef = self.hinge_stiffness(X) * BEND_CONSTANT * fac
+            else:
+                coef = self.bend_stiffness * BEND_CONSTANT * fac
             K.stencil_scatter(Kw, coef, self.bend_slots, vals)
         return vals
 
@@ -437,6 +487,11 @@ class ClothModel:
                 e += K.membrane_forces(x, self.tris, self.Dminv, self.tri_area, self.mu, self.lam, f)
             else:
                 e += K.membrane_energy(x, self.tris, self.Dminv, self.tri_area, self.mu, self.lam)
+        elif "membrane_orthotropic" in terms:
+            if want_forces:
+                e += K.membrane_ortho_forces(x, self.tris, self.Dminv, self.tri_area, self.elasticity, f)
+            else:
+                e += K.membrane_ortho_energy(x, self.tris, self.Dminv, self.tri_area, self.elasticity)
         lin = None
         if "bending" in terms and "seams" in terms:
             lin = self.Qconst
@@ -497,6 +552,19 @@ class ClothModel:
                 self.tri_area,
                 self.mu,
                 self.lam,
+                project,
+                self.tri_slots,
+                p.blk_base,
+                p.blk_stride,
+                data,
+            )
+        elif "membrane_orthotropic" in terms_:
+            K.membrane_ortho_stiffness(
+                x,
+                self.tris,
+                self.Dminv,
+                self.tri_area,
+                self.elasticity,
                 project,
                 self.tri_slots,
                 p.blk_base,
@@ -810,8 +878,10 @@ class ClothModel:
     def dforces_dX(self, x: np.ndarray, dX: np.ndarray, terms=None) -> np.ndarray:
         """d forces(x; X + e dX)/de at e = 0, shape (n, 3) [N per unit e].
 
-        Membrane and gravity analytic; bending by the exact derivative of
-        each stencil's weights (forward mode), matrix-free.
+        Membrane and gravity analytic (the orthotropic elasticity is fixed to
+        the material, not to X); bending by the exact derivative of each
+        stencil's weights (forward mode) and, for directional bending, of each
+        hinge's stiffness (it turns with the hinge), matrix-free.
         Seams, contact and friction do not depend on X."""
         terms = self._check_terms(terms)
         x = np.ascontiguousarray(x, dtype=np.float64)
@@ -819,6 +889,8 @@ class ClothModel:
         df = np.zeros((self.n, 3))
         if "membrane" in terms:
             K.membrane_dforces_dX(x, self.X, dX, self.tris, self.Dminv, self.tri_area, self.mu, self.lam, df)
+        elif "membrane_orthotropic" in terms:
+            K.membrane_ortho_dforces_dX(x, self.X, dX, self.tris, self.Dminv, self.tri_area, self.elasticity, df)
         if "gravity" in terms:
             # dA_t = A_t tr(Dminv dDm); m_i = rho/3 sum A_t
             d1 = dX[self.tris[:, 1]] - dX[self.tris[:, 0]]
@@ -827,8 +899,14 @@ class ClothModel:
             tr = Di[:, 0, 0] * d1[:, 0] + Di[:, 0, 1] * d1[:, 1] + Di[:, 1, 0] * d2[:, 0] + Di[:, 1, 1] * d2[:, 1]
             dA = self.tri_area * tr
             dm = np.zeros(self.n)
-            np.add.at(dm, self.tris.reshape(-1), np.repeat(dA * self.area_density / 3.0, 3))
+            np.add.at(dm, self.tris.reshape(-1), np.repeat(dA * self._rho / 3.0, 3))
             df[:, 1] -= GRAVITY * dm
         if "bending" in terms and len(self.bend_stencils):
-            K.bending_dforces_dX(x, self.X, dX, self.bend_stencils, self.bend_stiffness * BEND_CONSTANT, df)
+            if self.bend_directional:
+                # each hinge's stiffness turns with its direction: differentiated too
+                K.bending_var_dforces_dX(
+                    x, self.X, dX, self.bend_stencils, self.bend_dir, self.bend_warp, BEND_CONSTANT, df
+                )
+            else:
+                K.bending_dforces_dX(x, self.X, dX, self.bend_stencils, self.bend_stiffness * BEND_CONSTANT, df)
         return df

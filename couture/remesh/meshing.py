@@ -410,6 +410,7 @@ def mesh_pattern(
         x0=x0,
         tri_panel=tri_panel,
         panel_names=[p.name for p in drafted.panels],
+        panel_grain=np.array([p.grain for p in drafted.panels], dtype=np.float64),
         level=level,
         generation=generation,
     )

@@ -202,6 +202,8 @@ class RemeshService:
             x0=x0,
             tri_panel=old.tri_panel,
             panel_names=old.panel_names,
+            # a followed edit may turn a panel's grain (the names and order stay)
+            panel_grain=np.array([p.grain for p in drafted.panels], dtype=np.float64),
             seam_emitters=old.seam_emitters,
             seam_edges=old.seam_edges,
             seam_weights=old.seam_weights,

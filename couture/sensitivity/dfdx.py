@@ -15,7 +15,9 @@ membrane and gravity analytic, bending by the exact derivative of each
 stencil's weights K and factor 3 / (A0 + A1), by the kernels
 (``couture.cloth.kernels.membrane_gravity_dX_blocks``,
 ``bending_dX_blocks``) that share their per-triangle and per-stencil math
-with ``membrane_dforces_dX`` and ``bending_dforces_dX``.
+with ``membrane_dforces_dX`` and ``bending_dforces_dX`` (their orthotropic
+and per-hinge twins, ``membrane_ortho_gravity_dX_blocks`` and
+``bending_var_dX_blocks``, for woven or per-panel fabrics).
 """
 
 from __future__ import annotations
@@ -25,7 +27,12 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from couture.cloth.kernels import bending_dX_blocks, membrane_gravity_dX_blocks
+from couture.cloth.kernels import (
+    bending_dX_blocks,
+    bending_var_dX_blocks,
+    membrane_gravity_dX_blocks,
+    membrane_ortho_gravity_dX_blocks,
+)
 from couture.cloth.model import BEND_CONSTANT, GRAVITY, ClothModel
 
 
@@ -48,7 +55,21 @@ class DForcesDX:
         data = np.zeros((len(pat.indices), 3, 2))
         terms = model.terms if terms is None else model._check_terms(terms)
         rho_g3 = GRAVITY * model.area_density / 3.0 if "gravity" in terms else 0.0
-        if "membrane" in terms or rho_g3:
+        if model.membrane_term == "membrane_orthotropic":
+            # per-triangle elasticity and density (couture.cloth.material)
+            rho = GRAVITY * model.tri_density / 3.0 if "gravity" in terms else np.zeros(len(model.tris))
+            membrane_ortho_gravity_dX_blocks(
+                x,
+                model.tris,
+                model.Dminv,
+                model.tri_area,
+                model.elasticity,
+                "membrane_orthotropic" in terms,
+                rho,
+                model.tri_slots,
+                data,
+            )
+        elif "membrane" in terms or rho_g3:
             membrane_gravity_dX_blocks(
                 x,
                 model.tris,
@@ -61,7 +82,18 @@ class DForcesDX:
                 model.tri_slots,
                 data,
             )
-        if "bending" in terms and len(model.bend_stencils) and model.bend_stiffness:
+        if "bending" in terms and len(model.bend_stencils) and model.bend_directional:
+            bending_var_dX_blocks(
+                x,
+                np.ascontiguousarray(model.X, dtype=np.float64),
+                model.bend_stencils,
+                model.bend_dir,
+                model.bend_warp,
+                BEND_CONSTANT,
+                model.bend_slots,
+                data,
+            )
+        elif "bending" in terms and len(model.bend_stencils) and model.bend_stiffness:
             bending_dX_blocks(
                 x,
                 np.ascontiguousarray(model.X, dtype=np.float64),

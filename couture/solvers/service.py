@@ -45,7 +45,8 @@ from typing import Callable
 
 import numpy as np
 
-from couture.cloth.model import CONTACT_STIFFNESS_PER_MU, SEAM_STIFFNESS_PER_MU, ClothModel, Scene, lame_parameters
+from couture.cloth.material import FabricError, check_fabric, check_panel_names, reference_lame
+from couture.cloth.model import CONTACT_STIFFNESS_PER_MU, SEAM_STIFFNESS_PER_MU, ClothModel, Scene
 from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome, Verdict, judge
 from couture.mesh import GarmentMesh
 from couture.pattern.errors import PatternError
@@ -85,7 +86,8 @@ def carries_anchors(model) -> bool:
 
 def scene_from_design(design: Design) -> Scene:
     """The terms a design's scene needs (absent terms are never built), with
-    its seam and contact stiffnesses: the model's defaults (``*_PER_MU`` x the
+    each panel's own fabric (``Design.panel_fabrics``) and its seam and contact
+    stiffnesses: the model's defaults (``*_PER_MU`` x the
     fabric's shear modulus mu) times the scene's factors. Raises ValueError
     for a factor that is not positive and finite (a decoded design cannot
     hold one: ``schemas.design.StiffnessScale``)."""
@@ -96,7 +98,7 @@ def scene_from_design(design: Design) -> Scene:
             raise ValueError(f"scene.{name}: {v!r} is not a positive finite factor")
     # the default body keeps its old name; a graded body goes by its own (couture.bodies)
     body = ("mannequin" if design.body.name == "default" else design.body.name) if flags.body else None
-    mu, _ = lame_parameters(design.fabric.stretch_stiffness, design.fabric.poisson_ratio)
+    mu, _ = reference_lame(design.fabric)  # the model's own mu (isotropic: the fabric's)
     # a factor of 1 leaves the model's own default in charge (None)
     seam = None if flags.seam_stiffness_scale == 1.0 else flags.seam_stiffness_scale * SEAM_STIFFNESS_PER_MU * mu
     contact = (
@@ -110,7 +112,23 @@ def scene_from_design(design: Design) -> Scene:
         seam_stiffness=seam,
         contact_stiffness=contact,
         friction_model=flags.friction_model,
+        panel_fabrics=dict(design.panel_fabrics),
     )
+
+
+def check_materials(design: Design, mesh: GarmentMesh | None = None) -> None:
+    """The cloth model can be built of the design's fabrics (positive definite
+    membrane, positive bending hinges: ``couture.cloth.material.check_fabric``)
+    and, given the mesh, every panel named in ``panel_fabrics`` is one of its
+    panels; raises PatternError naming the field (``panel_fabrics.<panel>.<field>``)."""
+    try:
+        check_fabric(design.fabric)
+        for name, fabric in design.panel_fabrics.items():
+            check_fabric(fabric, f"panel_fabrics.{name}")
+        if mesh is not None:
+            check_panel_names(design.panel_fabrics, list(mesh.panel_names))
+    except FabricError as e:
+        raise PatternError(e.field, str(e)) from None
 
 
 def same_vertices(a: GarmentMesh, b: GarmentMesh) -> bool:
@@ -224,6 +242,7 @@ class SolveService:
         this solver cannot simulate."""
         m = matched.mesh
         try:
+            check_materials(matched.design, m.payload.mesh)
             self.set_design(matched.design)
         except PatternError:
             self.matcher.refuse(m)
@@ -238,9 +257,11 @@ class SolveService:
         Raises PatternError naming the field (``fabric.area_density``, ...)
         for a fabric outside its physical range, keeping the current design."""
         check_simulation_values(design)
+        check_materials(design)
         changed = (
             self.design is None
             or design.fabric != self.design.fabric
+            or design.panel_fabrics != self.design.panel_fabrics
             or design.scene != self.design.scene
             or design.body != self.design.body
         )
@@ -268,7 +289,8 @@ class SolveService:
         x_prev = None
         if old is not None and same_vertices(old.mesh, mesh):
             x_prev = old.x
-            if np.array_equal(old.mesh.tris, mesh.tris):
+            # a turned grain changes the material: a new model
+            if np.array_equal(old.mesh.tris, mesh.tris) and np.array_equal(old.mesh.panel_grain, mesh.panel_grain):
                 old.model.set_rest_positions(mesh.X)
                 model = old.model
             else:
