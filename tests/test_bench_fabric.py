@@ -90,13 +90,14 @@ def test_support_disc_distance_and_gradient():
 
 
 def test_quick_bench_run_on_one_fabric(tmp_path):
-    """The whole bench, --quick (one fabric, coarse meshes), in under 60 s:
+    """The whole bench, --quick (one fabric, coarse meshes), in under 60 s of CPU:
     the tensile test reproduces the model's stiffness within 1 %, the
     cantilever search lands on 41.5 degrees, the Cusick disc drapes
     (0 < DC < 1, folds counted) and the picture is written."""
-    t = time.perf_counter()
+    # CPU time of this process: the machine's other jobs do not count
+    t = time.process_time()
     assert fb.main(["--quick", "--out", str(tmp_path)]) == 0
-    assert time.perf_counter() - t < 60
+    assert time.process_time() - t < 60
     d = json.loads((tmp_path / "fabric.json").read_text())
     assert d["compile_s"] > 0 and d["total_s"] > 0
     assert d["elastica_overhang_per_c"] == pytest.approx(2.0, rel=1e-3)
