@@ -39,7 +39,7 @@ over 36 bend directions): f2 = 0.54..0.56, f4 = 0.28..0.30 on sheets of
 150..2200 vertices; 0.45, 0.22 on the default skirt's gores at 400
 vertices, 0.56, 0.26 at 1600, 0.52, 0.24 at 5600 (``BEND_HARMONIC_RESPONSE``
 takes 0.54, 0.27). Giving each hinge D itself (k = D(θ)) would leave a warp
-strip of the brief's denim (3, 1.5, 1 x 1e-5 N m) at 2.25 instead of 3.
+strip of the brief's denim (3, 1.5, 1 x 1e-5 N m) at 2.25 (measured) instead of 3.
 
 So the hinges get a0 = b0, a2 = b2 / f2, a4 = b4 / f4 for D's harmonics
 (b0, b2, b4), k(θ) = a0 + a2 cos 2θ + a4 cos 4θ, and every strip bends as
@@ -83,6 +83,7 @@ class FabricError(ValueError):
 
     def __init__(self, field: str, message: str):
         self.field = field
+        self.message = message
         super().__init__(f"{field}: {message}")
 
 
@@ -141,6 +142,8 @@ def orthotropic_elasticity(fabric, prefix: str = "fabric") -> np.ndarray:
     raises FabricError naming the field when C is not positive definite."""
     E1, E2, nu12, G = tensile_constants(fabric)
     for name, v in (("warp_stiffness", E1), ("weft_stiffness", E2), ("shear_stiffness", G)):
+        if _get(fabric, name) is None:
+            name = "stretch_stiffness"  # the default it stands for
         if not (np.isfinite(v) and v > 0):
             raise FabricError(f"{prefix}.{name}", f"{v!r} N/m: the membrane needs a positive finite stiffness")
     nu21 = nu12 * E2 / E1

@@ -333,6 +333,19 @@ class ClothModel:
             raise ValueError(f"Scene.friction_slip {scene.friction_slip!r}: a positive length [m]")
         self.friction_static = float(getattr(fabric, "friction_static", 0.5))
         self.friction_kinetic = float(getattr(fabric, "friction_kinetic", 0.3))
+        """the design fabric's Coulomb coefficients (``friction_coefficients``:
+        per vertex where panels' own fabrics differ)"""
+        self.vertex_friction: tuple[np.ndarray, np.ndarray] | None = None
+        mus = [
+            (float(getattr(f, "friction_static", 0.5)), float(getattr(f, "friction_kinetic", 0.3)))
+            for f in self.material.fabrics
+        ]
+        if len(set(mus)) > 1 and "friction" in self.terms:
+            # each vertex takes its panel's (a vertex is in one panel: panels meet by seam springs)
+            vf = np.zeros(self.n, np.int64)
+            vf[self.tris.reshape(-1)] = np.repeat(self.material.tri_fabric, 3)
+            table = np.array(mus)
+            self.vertex_friction = (table[vf, 0], table[vf, 1])
 
         # topology: stencils and the sparse pattern, built once per mesh
         self.bend_stencils, bend_tris = bending_stencils_and_triangles(self.tris)
@@ -653,6 +666,13 @@ class ClothModel:
         the offset layer (kernels.contact_law; 0 outside)."""
         return penalty_force(pen, self.contact_stiffness, self.contact_smoothing)
 
+    def friction_coefficients(self, idx=slice(None)):
+        """(mu_s, mu_k) of the vertices ``idx``: the design fabric's numbers, or
+        arrays where panels' own fabrics give them others."""
+        if self.vertex_friction is None:
+            return self.friction_static, self.friction_kinetic
+        return self.vertex_friction[0][idx], self.vertex_friction[1][idx]
+
     def friction_excess(self, x: np.ndarray) -> float:
         """Largest amount [N] by which an anchor's tangential force exceeds the static
         Coulomb limit mu_s f_n at x (anchors out of contact: their whole force);
@@ -664,7 +684,7 @@ class ClothModel:
         ft = np.linalg.norm(self.forces(x, ["friction"])[idx], axis=1)
         phi, _ = self._contact(np.ascontiguousarray(x[idx], dtype=np.float64))
         fn = self.contact_normal_force(self.contact_offset - phi)
-        return float(np.max(ft - self.friction_static * fn))
+        return float(np.max(ft - self.friction_coefficients(idx)[0] * fn))
 
     def slip_friction(self, x: np.ndarray) -> int:
         """Let every anchor that holds more than mu_s f_n at x slip: the vertex loses
@@ -683,7 +703,8 @@ class ClothModel:
         fn = self.contact_normal_force(self.contact_offset - phi)
         fa = self.forces(x, ["friction"])[idx]
         ft = np.linalg.norm(fa, axis=1)
-        over = ft > self.friction_static * fn
+        mu_s, mu_k = self.friction_coefficients(idx)
+        over = ft > mu_s * fn
         if not over.any():
             return 0
         j = idx[over]
@@ -691,9 +712,9 @@ class ClothModel:
         self.sliding[j] = False
         touching = fn[over] > 0.0
         self.slipping[j[touching]] = True
-        self.slip_force[j[touching]] = (self.friction_kinetic * fn[over][touching] / ft[over][touching])[:, None] * fa[
-            over
-        ][touching]
+        if self.vertex_friction is not None:
+            mu_k = mu_k[over][touching]
+        self.slip_force[j[touching]] = (mu_k * fn[over][touching] / ft[over][touching])[:, None] * fa[over][touching]
         return int(over.sum())
 
     def rescale_slipping(self, x: np.ndarray) -> float:
@@ -710,7 +731,7 @@ class ClothModel:
         fn = self.contact_normal_force(self.contact_offset - phi)
         old = self.slip_force[j]
         size = np.linalg.norm(old, axis=1)
-        scale = np.divide(self.friction_kinetic * fn, size, out=np.zeros_like(size), where=size > 0)
+        scale = np.divide(self.friction_coefficients(j)[1] * fn, size, out=np.zeros_like(size), where=size > 0)
         new = old * scale[:, None]
         self.slip_force[j] = new
         return float(np.max(np.linalg.norm(new - old, axis=1)))
@@ -833,12 +854,15 @@ class ClothModel:
             dt = d - np.einsum("ij,ij->i", d, n_)[:, None] * n_
             ft = self.friction_stiffness * np.linalg.norm(dt, axis=1)
             fn = self.contact_normal_force(pen[idx])
-            limit = np.where(self.sliding[idx], self.friction_kinetic * fn, self.friction_static * fn)
+            mu_s, mu_k = self.friction_coefficients(idx)
+            limit = np.where(self.sliding[idx], mu_k * fn, mu_s * fn)
             slide = ft > limit
             self.sliding[idx] = slide
             if slide.any():
                 j = idx[slide]
-                keep = (self.friction_kinetic * fn[slide] / self.friction_stiffness)[:, None]
+                if self.vertex_friction is not None:
+                    mu_k = mu_k[slide]
+                keep = (mu_k * fn[slide] / self.friction_stiffness)[:, None]
                 u = dt[slide] / np.linalg.norm(dt[slide], axis=1)[:, None]
                 # anchor trails the vertex at the kinetic limit, in the current tangent plane
                 nn = gn[j]
@@ -871,7 +895,8 @@ class ClothModel:
         self.anchor[new] = x[new]
         self.anchor_normal[new] = grad[new] / np.maximum(np.linalg.norm(grad[new], axis=1), 1e-300)[:, None]
         self.anchored[new] = True
-        self.friction_limit[:] = np.where(self.anchored, self.friction_static * self.contact_normal_force(pen), 0.0)
+        mu_s = self.friction_coefficients()[0]
+        self.friction_limit[:] = np.where(self.anchored, mu_s * self.contact_normal_force(pen), 0.0)
         f_new = self.forces(x, ["friction"])
         return float(np.max(np.linalg.norm(f_new - f_old, axis=1), initial=0.0)), int(gone.sum())
 

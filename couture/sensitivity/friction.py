@@ -67,7 +67,7 @@ def hold_friction(model: ClothModel, x: np.ndarray, slide_at: float = 0.999) -> 
     need = -model.forces(x, others)[idx]  # the friction force a balance needs
     ft = need - np.einsum("ij,ij->i", need, n_)[:, None] * n_
     fn = model.contact_normal_force(pen[idx])
-    limit = model.friction_static * fn
+    limit = model.friction_coefficients(idx)[0] * fn
     mag = np.linalg.norm(ft, axis=1)
     ratio = np.where(limit > 0, mag / np.maximum(limit, 1e-300), np.where(mag > 0, np.inf, 0.0))
     slide = ratio >= slide_at

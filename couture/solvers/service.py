@@ -128,7 +128,7 @@ def check_materials(design: Design, mesh: GarmentMesh | None = None) -> None:
         if mesh is not None:
             check_panel_names(design.panel_fabrics, list(mesh.panel_names))
     except FabricError as e:
-        raise PatternError(e.field, str(e)) from None
+        raise PatternError(e.field, e.message) from None
 
 
 def same_vertices(a: GarmentMesh, b: GarmentMesh) -> bool:
@@ -242,6 +242,7 @@ class SolveService:
         this solver cannot simulate."""
         m = matched.mesh
         try:
+            check_simulation_values(matched.design)  # ranges first: they name the field the designer set
             check_materials(matched.design, m.payload.mesh)
             self.set_design(matched.design)
         except PatternError:
