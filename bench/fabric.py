@@ -538,7 +538,7 @@ def plot_discs(rows: list[dict[str, Any]], path: Path) -> None:
         ax.set_title(f"{row['fabric']}\nDC {100 * row['drape_coefficient']:.0f} %, {row['nodes']} nodes", fontsize=9)
     fig.suptitle("Cusick drape test (top view, colour: height, 0 to -7 cm)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=90)
     plt.close(fig)
 
 
