@@ -211,6 +211,19 @@ def _parser() -> argparse.ArgumentParser:
         "(default: the solver's own; ignored with --connect)",
     )
     dp.add_argument(
+        "--fabric",
+        default=None,
+        metavar="NAME",
+        help="drape in this library fabric instead of the design's own (`couture fabrics` lists them)",
+    )
+    dp.add_argument(
+        "--panel-fabric",
+        action="append",
+        default=[],
+        metavar="PANEL=NAME",
+        help="cut this panel from a library fabric (repeatable), e.g. waistband=denim",
+    )
+    dp.add_argument(
         "-v",
         "--verbose",
         dest="drape_verbose",
@@ -322,12 +335,28 @@ def _parser() -> argparse.ArgumentParser:
         help="[N/m] the fabric's in-plane stiffness (default 200: a woven; couture's default cotton is 20)",
     )
     im.add_argument(
+        "--fabric",
+        default=None,
+        metavar="NAME",
+        help="the design's fabric from the library (`couture fabrics`); overrides --stretch-stiffness",
+    )
+    im.add_argument(
         "--min-confidence",
         type=float,
         default=0.5,
         metavar="C",
         help="suggested seams below this confidence are listed but not sewn (default 0.5)",
     )
+
+    fb = sub.add_parser(
+        "fabrics",
+        help="the fabric library: name, density, stiffness, bending, Peirce bending length, sources",
+        description="List the library fabrics (couture/assets/fabrics/library.toml) that --fabric and the UI\n"
+        "offer, with their key numbers; --source NAME prints where every number of one fabric comes from.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    fb.add_argument("--source", default=None, metavar="NAME", help="every number of one fabric with its source")
+    fb.add_argument("--json", action="store_true", help="print the library as JSON")
 
     ad = sub.add_parser(
         "adjust",
@@ -448,6 +477,92 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
+def parse_panel_fabrics(items: list[str]) -> dict[str, str]:
+    """['waistband=denim', ...] -> {'waistband': 'denim'}; a ValueError naming a malformed item."""
+    out: dict[str, str] = {}
+    for item in items:
+        panel, sep, fabric = item.partition("=")
+        if not sep or not panel or not fabric:
+            raise ValueError(f"--panel-fabric {item!r}: use PANEL=NAME, e.g. waistband=denim")
+        out[panel] = fabric
+    return out
+
+
+def with_library_fabrics(design, fabric: str | None, panel_fabrics: dict[str, str]):
+    """The design with its fabric (and panels' own fabrics) taken from the
+    library by name; unknown fabric or panel names raise ValueError."""
+    import msgspec
+
+    from couture import fabrics
+
+    if fabric is not None:
+        design = msgspec.structs.replace(design, fabric=fabrics.get(fabric))
+    if panel_fabrics:
+        from couture.pattern.draft import draft
+
+        panels = [p.name for p in draft(design).panels]
+        bad = sorted(set(panel_fabrics) - set(panels))
+        if bad:
+            raise ValueError(f"--panel-fabric: no panel {bad[0]!r} in the design; its panels are {panels}")
+        own = dict(design.panel_fabrics)
+        own.update({p: fabrics.get(n) for p, n in panel_fabrics.items()})
+        design = msgspec.structs.replace(design, panel_fabrics=own)
+    return design
+
+
+def fabrics_command(args: argparse.Namespace) -> int:
+    """``couture fabrics``: the library as a table (or one fabric's sources, or JSON)."""
+    from couture import fabrics
+
+    if args.source is not None:
+        e = fabrics.entry(args.source)
+        print(f"{e.name}: {e.label} ({e.kind}; linear fit valid to {100 * e.valid_strain:g} % strain)")
+        for field in (*fabrics.NUMBERS, "valid_strain"):
+            v = e.valid_strain if field == "valid_strain" else getattr(e.fabric, field)
+            print(f"  {field:18s} {v:<10.4g} {e.sources[field]}")
+        for key, ref in fabrics.references().items():
+            print(f"  [{key}] {ref}")
+        return 0
+    entries = [fabrics.entry(n) for n in fabrics.names()]
+    if args.json:
+        import msgspec
+
+        from couture.jsonout import dumps
+
+        print(
+            dumps(
+                [
+                    {
+                        "name": e.name,
+                        "label": e.label,
+                        "kind": e.kind,
+                        "valid_strain": e.valid_strain,
+                        "fabric": msgspec.to_builtins(e.fabric),
+                        "sources": e.sources,
+                    }
+                    for e in entries
+                ],
+                indent=2,
+            )
+        )
+        return 0
+    print(
+        f"{'name':16s} {'kind':5s} {'g/m2':>5s} {'mm':>5s} {'warp':>6s} {'weft':>6s} {'shear':>6s} N/m  "
+        f"{'bend warp':>9s} {'weft':>8s} {'bias':>8s} N m  {'c cm':>5s} {'mu_s':>4s}  measured"
+    )
+    for e in entries:
+        f = e.fabric
+        measured = [k for k, v in e.sources.items() if v.startswith("measured")]
+        print(
+            f"{e.name:16s} {e.kind:5s} {1000 * f.area_density:5.0f} {1000 * (f.thickness or 0):5.2f} "
+            f"{f.warp_stiffness:6.0f} {f.weft_stiffness:6.0f} {f.shear_stiffness:6.1f}      "
+            f"{f.bend_warp:9.2e} {f.bend_weft:8.2e} {f.bend_bias:8.2e}      {100 * e.bending_length_warp:5.2f} "
+            f"{f.friction_static:4.2f}  {', '.join(measured) or '-'}"
+        )
+    print("every number's source: couture fabrics --source NAME (the rest are estimates of the fabric class)")
+    return 0
+
+
 IMPORT_BAD_FILE = 4
 """exit status of ``couture import`` for a file that cannot be imported"""
 
@@ -480,6 +595,8 @@ def import_pattern(args: argparse.Namespace) -> int:
             min_confidence=args.min_confidence,
             stretch_stiffness=args.stretch_stiffness,
         )
+        if args.fabric is not None:
+            design = with_library_fabrics(design, args.fabric, {})
         try:
             validate(design)
         except PatternError as e:
@@ -648,7 +765,12 @@ def _dispatch(args: argparse.Namespace) -> int:
             solver_max_seconds=args.solver_max_seconds,
             verbose=args.verbose or args.drape_verbose,
             name=args.name,
+            fabric=args.fabric,
+            panel_fabrics=parse_panel_fabrics(args.panel_fabric),
         )
+
+    if args.cmd == "fabrics":
+        return fabrics_command(args)
 
     if args.cmd == "export":
         return export_pattern(args)
@@ -871,6 +993,8 @@ def drape(
     solver_max_seconds: float | None = None,
     verbose: bool = False,
     name: str | None = None,
+    fabric: str | None = None,
+    panel_fabrics: dict[str, str] | None = None,
 ) -> int:
     """Drape a pattern file: join the bus given by ``bus.connect`` or start the
     nodes (no UI), publish the pattern, wait for the final drape/fine of that
@@ -884,7 +1008,9 @@ def drape(
     Node output (lifecycle, library logs) goes to ``out/nodes.log`` unless
     ``verbose``; ``timeout`` [s] bounds the wait for the fine drape and
     ``solver_max_seconds`` [s] caps each level's solve in a started solver;
-    ``name`` is the client's node name (its certificate with ``bus.tls``)."""
+    ``name`` is the client's node name (its certificate with ``bus.tls``);
+    ``fabric`` a library fabric the design is draped in instead of its own,
+    ``panel_fabrics`` panel name -> library fabric (``Design.panel_fabrics``)."""
     from contextlib import ExitStack
 
     from couture import supervisor
@@ -914,6 +1040,7 @@ def drape(
         logging.getLogger().setLevel(logging.WARNING)
     try:
         design = load_design(pattern)  # fail on a bad file before starting anything
+        design = with_library_fabrics(design, fabric, panel_fabrics or {})
     except ValueError as e:
         print(f"couture drape: bad design: {e}", file=sys.stderr)
         return DrapeExit.BAD_DESIGN

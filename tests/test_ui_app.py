@@ -422,11 +422,36 @@ def test_handle_drag_gives_typed_edits_and_commits_on_release(tmp_path):
         ui.stop()
 
 
+def test_a_library_fabric_preset_brings_the_whole_fabric_and_custom_is_isotropic(ui):
+    """Choosing a library fabric hands the design that fabric whole
+    (directional values, density, skin friction); editing a number after it
+    makes a custom, isotropic fabric (its directional values cleared)."""
+    from couture import fabrics
+
+    got = []
+    before = ui.design
+    ui.on_design_changed = got.append
+    assert "denim" in ui.controls.preset.options and "custom" in ui.controls.preset.options
+    ui.controls.preset.value = "denim"
+    ui.controls.preset_chosen()
+    assert got[-1].fabric == fabrics.get("denim")
+    assert float(ui.controls.stretch.value) == pytest.approx(fabrics.get("denim").stretch_stiffness)
+    ui.controls.stretch.value = 900.0
+    ui.controls.fabric_changed()
+    f = got[-1].fabric
+    assert f.name == "custom" and f.stretch_stiffness == 900.0 and f.warp_stiffness is None and f.bend_bias is None
+    assert f.area_density == fabrics.get("denim").area_density  # the rest of the fabric stays
+    ui.on_design_changed = None
+    ui.design = before
+
+
 def test_fabric_presets_are_the_design_fabric():
     from couture.ui.state import FABRIC_PRESETS
     from schemas.design import Fabric
 
     assert all(isinstance(f, Fabric) and f.name == name for name, f in FABRIC_PRESETS.items())
+    # the library and SC's three
+    assert {"denim", "chiffon", "jersey", "silk-like", "cotton", "stiff"} <= set(FABRIC_PRESETS)
 
 
 def test_client_framing_follows_the_canvas_until_the_designer_moves_the_camera():

@@ -12,10 +12,14 @@ from typing import Any, Callable
 import msgspec
 import viser
 
+from couture.pattern.limits import DIRECTIONAL_LIMITS
 from couture.ui import colormaps
-from couture.ui.state import FABRIC_PRESETS, option_values, sloper_kinds, sloper_options
+from couture.ui.state import FABRIC_PRESETS, LIBRARY_PRESETS, option_values, sloper_kinds, sloper_options
 from couture.ui.widgets import nice_step, on_user_change
 from schemas.design import Design, Fabric
+
+DIRECTIONAL_FIELDS = tuple(DIRECTIONAL_LIMITS)
+"""Fabric's optional directional fields, cleared by a custom (isotropic) entry"""
 
 
 class Controls:
@@ -159,6 +163,10 @@ class Controls:
         if p is None:
             return
         self.bend.value, self.stretch.value, self.density.value = p.bend_stiffness, p.stretch_stiffness, p.area_density  # type: ignore[misc]  # viser has the setter; mypy misses it
+        if p.name in LIBRARY_PRESETS:
+            # a library fabric whole: its directional values, density and skin friction
+            self._set_fabric(msgspec.structs.replace(p))
+            return
         self._set_fabric(
             msgspec.structs.replace(
                 self.design().fabric,
@@ -178,6 +186,8 @@ class Controls:
                 bend_stiffness=float(self.bend.value),
                 stretch_stiffness=float(self.stretch.value),
                 area_density=float(self.density.value),
+                # a custom entry is isotropic: the three numbers shown are all it has
+                **dict.fromkeys(DIRECTIONAL_FIELDS),
             )
         )
 

@@ -81,15 +81,30 @@ class DrapeFrame:
     """a prediction's estimated distance from the true equilibrium [m] (None: not known)"""
 
 
-FABRIC_PRESETS: dict[str, Fabric] = {
+SC_PRESETS: dict[str, Fabric] = {
     f.name: f
     for f in (
-        # SC Table 1 rows (bending [N m], stretching [N/m], density [kg/m²])
+        # SC Table 1 rows (bending [N m], stretching [N/m], density [kg/m²]): the
+        # ends and middle of the solver's tested range, not measured fabrics
         Fabric(name="silk-like", bend_stiffness=1e-8, stretch_stiffness=10.0, area_density=0.2),
         Fabric(name="cotton", bend_stiffness=5e-6, stretch_stiffness=200.0, area_density=0.15),
         Fabric(name="stiff", bend_stiffness=3e-4, stretch_stiffness=2000.0, area_density=0.08),
     )
 }
+
+
+def _library_presets() -> dict[str, Fabric]:
+    from couture import fabrics
+
+    return {name: fabrics.get(name) for name in fabrics.names()}
+
+
+LIBRARY_PRESETS: dict[str, Fabric] = _library_presets()
+"""the fabric library (couture/assets/fabrics/library.toml): measured or
+estimated real fabrics, directional values and skin friction included"""
+
+FABRIC_PRESETS: dict[str, Fabric] = {**LIBRARY_PRESETS, **SC_PRESETS}
+"""what the fabric panel offers besides 'custom': the library, then SC's three"""
 
 
 def sloper_kinds() -> list[str]:
