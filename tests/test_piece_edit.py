@@ -152,3 +152,75 @@ def test_export_writes_an_edited_piece_back(tmp_path, penelope):
         assert p.sew.shape == P.shape and np.abs((p.sew - p.sew[0]) - (P - P[0])).max() < 1e-9
     front = pat.panel("front").outline
     assert np.abs(front - draft(penelope).panel("front").outline).max() > 0.01
+
+
+def test_remesher_psi_for_a_piece_point_moves_the_mesh_as_the_edit_does(penelope):
+    """Ψ (the remesher's, for the sensitivity node) of a corner edit against
+    the mesh the remesher follows to the edited design: X + Ψ dd."""
+    from couture.remesh.service import RemeshService
+
+    d = copy.deepcopy(penelope)
+    d.resolution = type(d.resolution)(coarse_vertices=800, fine_vertices=1600)
+    c = _corner(d, "front", 2)
+    el = f"pt:front:{c}"
+    svc = RemeshService()
+    svc.set_design(d, 1)
+    psi = svc.psi_for(el)["coarse"]
+    X0 = svc.levels["coarse"].mesh.X.copy()
+    assert np.abs(psi).max() > 0.5  # the mesh vertex at the corner moves with it
+    dd = np.array([0.004, -0.003])
+    up = svc.set_design(apply_edit(d, el, dd), 2)[0]
+    assert up.how in ("followed", "flipped")
+    assert np.abs(up.mesh.X - (X0 + psi @ dd)).max() < 1e-9
+
+
+def test_ui_curve_tool_on_a_piece_segment_and_no_dart_on_a_piece(tmp_path, penelope):
+    """The curve tool (headless UI) adds a control point on a piece segment;
+    its handle then bends the segment. The dart tool refuses a piece (its
+    darts come with it) and the draft names a dart stroke on one."""
+    from couture.bus.ports import free_port
+    from couture.pattern.pieces import segment_span
+    from couture.ui.app import CoutureUI, UIConfig
+
+    ui = CoutureUI(UIConfig(port=free_port(), export_dir=tmp_path, show_body=False, draft_locally=False))
+    ui.start()
+    try:
+        ui.set_design(penelope)
+        pat = draft(penelope)
+        ui.show_pattern(pat)
+        got: list[Design] = []
+        ui.on_design_changed = got.append
+        front = pat.panel("front")
+        seg = next(s for s in front.segments if s.name == "e0")
+        idx = segment_span(len(front.outline), seg.start, seg.stop)
+        ui.tools.arm("curve")
+        ui.tools.click(ui.view2d.display("front", front.outline[idx[len(idx) // 2]]), "front")
+        assert len(got) == 1
+        st = got[-1].strokes[-1]
+        assert (st.kind, st.panel, st.params["segment"]) == ("curve", "front", "e0")
+        assert 0.3 < st.params["points"][0][0] < 0.7 and st.params["points"][0][1] == 0.0
+        curved = got[-1]
+        hs = plan_handles(curved, draft(curved))
+        cv = next(h for h in hs.handles if h.element == "cv:front:e0:0")
+        assert cv.panel == "front" and cv.vertex in idx
+        chord = front.outline[idx[-1]] - front.outline[idx[0]]
+        across = 0.01 * np.array([chord[1], -chord[0]]) / np.linalg.norm(chord)  # outward, 1 cm
+        bent = draft(apply_edit(curved, cv.element, cv.element_delta(across))).panel("front")
+        assert 0.005 < np.abs(bent.outline - front.outline).max() < 0.02
+
+        ui.tools.arm("dart")
+        ui.tools.click(ui.view2d.display("front", front.outline[idx[len(idx) // 2]]), "front")
+        assert len(got) == 1 and "imported piece" in ui.tools.help.content and ui.tools.armed is None
+    finally:
+        ui.stop()
+    d = copy.deepcopy(penelope)
+    d.strokes = list(d.strokes) + [
+        Stroke(
+            id="d9",
+            kind="dart",
+            panel="front",
+            params={"segment": "e0", "position": 0.5, "width": 0.02, "length": 0.05},
+        )
+    ]
+    with pytest.raises(PatternError, match="d9: a dart stroke on the imported piece 'front' is not supported"):
+        draft(d)

@@ -296,6 +296,13 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
         apply_piece_curves(p, free_segs[p.name])
 
     # darts (built-in, overridden by same-id strokes, plus stroke darts) and holes
+    for st in design.strokes:
+        if st.kind in ("dart", "hole") and st.panel in free_segs:
+            raise PatternError(
+                st.id,
+                f"a {st.kind} stroke on the imported piece {st.panel!r} is not supported "
+                "(a piece's darts are its own, sewn leg to leg by seam strokes)",
+            )
     overrides = {st.id: st for st in design.strokes if st.kind == "dart"}
     for bd in sloper.darts:
         prm = dict(bd.params)
