@@ -224,3 +224,35 @@ def test_ui_curve_tool_on_a_piece_segment_and_no_dart_on_a_piece(tmp_path, penel
     ]
     with pytest.raises(PatternError, match="d9: a dart stroke on the imported piece 'front' is not supported"):
         draft(d)
+
+
+def test_couture_export_cli_writes_an_edited_imported_design(tmp_path, penelope):
+    """`couture export` (the command, defaults but the formats) of an imported
+    design whose piece was edited: every piece comes back from the DXF and the
+    SVG with the drafted (edited) sew line to 1e-6 m (the sheet layout moves
+    pieces: compared about their centroids)."""
+    import subprocess
+    import sys
+
+    from couture.pattern.io import save_design
+
+    c = _corner(penelope, "back_left", 2)
+    edited = apply_edit(penelope, f"pt:back_left:{c}", [0.01, 0.01])
+    save_design(edited, tmp_path / "edited.json")
+    r = subprocess.run(
+        [sys.executable, "-m", "couture.cli", "export", str(tmp_path / "edited.json")]
+        + ["--format", "dxf", "svg", "--out", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert r.returncode == 0, r.stderr[-2000:]
+    pat = draft(edited)
+    for f in ("edited.dxf", "edited.svg"):
+        got = {g.name: g for g in read_pattern(tmp_path / "out" / f)}
+        assert sorted(got) == sorted(p.name for p in pat.panels), f
+        for p in pat.panels:
+            S, P = got[p.name].sew, p.outline
+            assert S.shape == P.shape and np.abs((S - S.mean(0)) - (P - P.mean(0))).max() < 1e-6, (f, p.name)
+    # back_left and back_right were mirror images; the edit tells them apart
+    assert np.abs(pat.panel("back_left").outline - draft(penelope).panel("back_left").outline).max() > 0.009
