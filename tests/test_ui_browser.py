@@ -248,3 +248,122 @@ def test_adjust_folder_button_and_hem_handle_drag_send_requests(session):
     assert loop == "hem" and amount < -0.005  # up: shorter
     page.screenshot(path=str(ARTIFACTS / "ui_adjust.png"))
     ui.on_adjust = None
+
+
+def _pattern_canvas(page) -> dict:
+    """Page-pixel box of the pattern view's canvas (the largest canvas in its iframe)."""
+    boxes = [b for c in page.frame_locator("#pattern").locator("canvas").all() if (b := c.bounding_box())]
+    return max(boxes, key=lambda b: b["width"] * b["height"])
+
+
+def _pattern_to_page(page, view2d, p_display: np.ndarray, z: float = 0.0) -> np.ndarray:
+    """Page pixels of a display point of the pattern view: its camera looks
+    straight down at the pattern, framed to its canvas (pattern_view.fit_camera)."""
+    from couture.ui.pattern_view import CAMERA_FOV, fit_camera
+
+    box = _pattern_canvas(page)
+    (cx, cy, dist), _ = fit_camera(*view2d.bounds(), box["width"] / box["height"])
+    dist -= z
+    f = 0.5 * box["height"] / np.tan(0.5 * CAMERA_FOV)
+    return np.array(
+        [
+            box["x"] + 0.5 * box["width"] + f * (p_display[0] - cx) / dist,
+            box["y"] + 0.5 * box["height"] - f * (p_display[1] - cy) / dist,
+        ]
+    )
+
+
+# Last: it replaces the demo sheet's pattern with an imported design.
+def test_imported_piece_corner_drag_and_sew(session):
+    """An imported design (FreeSewing penelope) in the pattern view: dragging
+    a piece's corner handle commits a design whose piece outline moved by the
+    drag, and the sew tool pairs two of the pieces' segments (a seam stroke)."""
+    from pathlib import Path
+
+    from couture.pattern import draft
+    from couture.pattern.imported import read_pattern
+    from couture.pattern.sewing import build_design
+    from couture.ui.handles import plan_handles
+
+    page, ui, events = session["page"], session["ui"], session["events"]
+    svg = Path(__file__).parent / "data" / "imported" / "freesewing" / "penelope_cisFemaleAdult34.svg"
+    design, rep = build_design(read_pattern(svg))
+    pattern = draft(design)
+    ui.set_design(design)  # this UI does not draft itself (draft_locally=False): pattern and handles by hand
+    ui.show_pattern(pattern)
+    ui.view2d.set_handles(plan_handles(design, pattern))
+    v2 = ui.view2d
+    stable_camera(session["c2"], page)  # the view reframed to the pieces
+    # the hem corner of 'front' farthest from the piece's middle, dragged outward
+    front = pattern.panel("front")
+    mid = front.outline.mean(axis=0)
+    i, h = max(
+        ((i, h) for i, h in enumerate(v2.handles) if h.kind == "pt" and h.panel == "front"),
+        key=lambda ih: np.linalg.norm(front.outline[ih[1].vertex] - mid),
+    )
+    out = front.outline[h.vertex] - mid
+    out_px = np.array([out[0], -out[1]]) / np.linalg.norm(out)  # on screen, +y is up
+    tries = []
+    for _ in range(4):  # a drag that starts while the page still draws may be dropped
+        start = _pattern_to_page(page, v2, v2.handle_positions()[i, :2], z=0.003)
+        n0 = len(events["design"])
+        _drag(page, start, start + 30.0 * out_px)
+        try:
+            wait_until(lambda n0=n0: len(events["design"]) > n0, 30, page)
+        except TimeoutError:
+            tries.append([round(float(c)) for c in start])
+            page.wait_for_timeout(1000)
+            continue
+        break
+    else:
+        pytest.fail(f"no design from 4 drags of the corner handle {h.element} (page pixels {tries})")
+    new = events["design"][-1]
+    before = np.asarray(next(p for p in design.pieces if p.name == "front").outline)
+    after = np.asarray(next(p for p in new.pieces if p.name == "front").outline)
+    moved = after[h.vertex] - before[h.vertex]
+    assert np.linalg.norm(moved) > 0.005 and moved @ out > 0  # outward, by the drag
+    others = [c for c in next(p for p in design.pieces if p.name == "front").corners if c != h.vertex]
+    assert np.abs(after[others] - before[others]).max() == 0  # the other corners stay
+    page.screenshot(path=str(ARTIFACTS / "ui_piece_corner_drag.png"))
+
+    # the sew tool: its button, then a click on the middle of two free segments of two pieces
+    free = [(p, s) for p, s, _ in rep.free if p in ("back_left", "front")]
+    a = next(ps for ps in free if ps[0] == "back_left")
+    b = next(ps for ps in free if ps[0] == "front")
+    f2 = page.frame_locator("#pattern")
+    button = f2.get_by_role("button", name="Sew two segments")
+    if not button.is_visible():
+        f2.get_by_text("Tools", exact=True).first.click()
+    button.click()
+    wait_until(lambda: ui.tools.armed is not None and ui.tools.armed.tool == "seam", 30, page)
+    from couture.ui.pattern_view import segment_points
+
+    n0 = len(events["design"])
+    for pn, sn in (a, b):
+        P = segment_points(pattern.panel(pn), sn)
+        px = _pattern_to_page(page, v2, v2.display(pn, P[len(P) // 2]))
+        k0 = len(ui.tools.armed.picks) if ui.tools.armed is not None else 2
+        for _ in range(4):
+            page.mouse.move(px[0] - 2, px[1])
+            page.wait_for_timeout(150)
+            page.mouse.move(*px)
+            page.wait_for_timeout(250)
+            page.mouse.click(*px)
+            try:
+                wait_until(
+                    lambda k0=k0: ui.tools.armed is None or len(ui.tools.armed.picks) > k0,
+                    10,
+                    page,
+                )
+            except TimeoutError:
+                continue
+            break
+        else:
+            pytest.fail(f"no click on {pn}:{sn} reached the sew tool")
+    wait_until(lambda: len(events["design"]) > n0, 30, page)
+    seam = events["design"][-1].strokes[-1]
+    assert seam.kind == "seam"
+    assert {(seam.params["a_panel"], seam.params["a_segment"]), (seam.params["b_panel"], seam.params["b_segment"])} == {
+        a,
+        b,
+    }

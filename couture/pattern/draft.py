@@ -248,9 +248,13 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
     for pd in sloper.panels:
         for sg in pd.segments:
             ctx.segs[(pd.name, sg.name)] = SegEval(sg.curves, list(counts[(pd.name, sg.name)]))
-    from couture.pattern.pieces import piece_panels
+    from couture.pattern.pieces import apply_piece_curves, piece_panels, piece_segments
 
     free = piece_panels(design)
+    free_segs = {p.name: piece_segments(p) for p in free}
+    for name, segs in free_segs.items():
+        for sn, pseg in segs.items():
+            ctx.segs[(name, sn)] = pseg  # type: ignore[assignment]  # SegEval's interface: curve strokes bend piece segments too
     panel_names = [p.name for p in sloper.panels] + [p.name for p in free]
     for name in {n for n in panel_names if panel_names.count(n) > 1}:
         raise PatternError(name, "two panels have this name (free-form pieces and sloper panels need unique names)")
@@ -288,8 +292,17 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
         ss.append(1.0)
         dn.append(0.0)
         seg.disp = CubicSpline(ss, dn, bc_type="clamped")
+    for p in free:
+        apply_piece_curves(p, free_segs[p.name])
 
     # darts (built-in, overridden by same-id strokes, plus stroke darts) and holes
+    for st in design.strokes:
+        if st.kind in ("dart", "hole") and st.panel in free_segs:
+            raise PatternError(
+                st.id,
+                f"a {st.kind} stroke on the imported piece {st.panel!r} is not supported "
+                "(a piece's darts are its own, sewn leg to leg by seam strokes)",
+            )
     overrides = {st.id: st for st in design.strokes if st.kind == "dart"}
     for bd in sloper.darts:
         prm = dict(bd.params)

@@ -17,6 +17,17 @@ Element ids:
 - ``dart:<id>:length``: the pointer drags the apex/tip: boundary: length
   changes by a.dd, interior: 2 a.dd (a the inward axis).
 - ``hole:<id>:position``, ``hole:<id>:radius`` (radius changes by t.dd).
+- ``pt:<piece>:<i>``: outline point i of a free-form piece (``Design.pieces``)
+  moves with the pointer (dd itself, [m]); the points between it and the
+  nearest corner on either side follow by their arc-length fraction toward
+  that corner (``couture.pattern.pieces.point_weights``: a corner's two
+  segments stretch to it, a straight edge stays straight, the other corners
+  stay), and so do the piece's notches on those runs. A move that makes the
+  outline self-intersect is refused, naming the piece and the point. The
+  UI's handles are the pieces' corners (:func:`edit_elements`); any point may
+  be edited through the id. Its Jacobian is exact (the weights times the 2x2
+  identity, for the piece's panel only: the other panels stay) when no
+  stroke but a seam names the piece; else the central differences below.
 
 Jacobians are central finite differences of the drafting function with step
 h = 1e-6 in each scalar stroke/option value (metres or fractions): drafting
@@ -37,7 +48,9 @@ import numpy as np
 from couture.pattern.draft import DraftContext, draft_with_context, interior_frame, sloper_of
 from couture.pattern.drafted import DraftedPattern, PanelJacobian
 from couture.pattern.errors import PatternError
-from schemas.design import Design, Stroke
+from couture.pattern.geometry import self_intersections, signed_area
+from couture.pattern.pieces import point_weights
+from schemas.design import Design, Piece, Stroke
 
 FD_STEP = 1e-6
 
@@ -56,13 +69,59 @@ def _dart_params(design: Design, ctx: DraftContext, dart_id: str, element: str) 
     return d.params, d.kind
 
 
-def _dofs(design: Design, element: str, ctx: DraftContext):
+def _piece_point(design: Design, element: str) -> tuple[int, Piece, int]:
+    """(piece index, piece, outline index) of a ``pt:<piece>:<i>`` element."""
+    parts = element.split(":")
+    if len(parts) != 3:
+        raise PatternError(element, "a piece point is pt:<piece>:<outline index>")
+    j = next((j for j, pc in enumerate(design.pieces) if pc.name == parts[1]), None)
+    if j is None:
+        raise PatternError(element, f"no piece named {parts[1]!r}; pieces are {[pc.name for pc in design.pieces]}")
+    try:
+        i = int(parts[2])
+    except ValueError:
+        raise PatternError(element, f"outline index {parts[2]!r} is not a whole number") from None
+    return j, design.pieces[j], i
+
+
+def _point_dofs(design: Design, element: str):
+    """(setter, q, G) of a piece point: q its position [m], G the identity."""
+    j, piece, i = _piece_point(design, element)
+    idx, w = point_weights(piece, i, element)
+    P0 = np.asarray(piece.outline, float)
+    q0 = P0[i].copy()
+    # a notch follows the outline point nearest it (its weight)
+    N0 = np.asarray(piece.notches, float).reshape(-1, 2)
+    wv = np.zeros(len(P0))
+    wv[idx] = w
+    wn = wv[np.argmin(np.linalg.norm(N0[:, None, :] - P0[None, :, :], axis=2), axis=1)] if len(N0) else np.zeros(0)
+
+    def set_point(d, q):
+        delta = np.asarray(q, float) - q0
+        P = P0.copy()
+        P[idx] += w[:, None] * delta[None, :]
+        N = N0 + wn[:, None] * delta[None, :]
+        d = copy.deepcopy(d)
+        pieces = list(d.pieces)
+        pieces[j] = copy.deepcopy(pieces[j])
+        pieces[j].outline = [(float(x), float(y)) for x, y in P]
+        pieces[j].notches = [(float(x), float(y)) for x, y in N]
+        d.pieces = pieces
+        return d
+
+    return set_point, q0, np.eye(2)
+
+
+def _dofs(design: Design, element: str, ctx: DraftContext | None):
     """(setter, values q, G) for an element: q are the scalar values the element
     changes, G (len(q), 2) maps a pointer motion dd to dq; setter(design, q) -> Design.
     The setter takes any q (the Jacobian differences across an option's bound);
     :func:`_bounds` gives the range an edit may commit."""
     parts = element.split(":")
     kind = parts[0]
+    if kind == "pt":
+        return _point_dofs(design, element)
+    assert ctx is not None, "only a piece point's frame needs no draft"
     if kind == "param":
         name = ":".join(parts[1:])
         sd = sloper_of(design)
@@ -149,7 +208,7 @@ def _dofs(design: Design, element: str, ctx: DraftContext):
             return d
 
         return set_dart, np.array([float(prm[k]) for k in keys]), G
-    raise PatternError(element, "unknown element id (expected param:, cv:, dart: or hole:)")
+    raise PatternError(element, "unknown element id (expected param:, cv:, dart:, hole: or pt:)")
 
 
 def _bounds(design: Design, element: str, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -171,6 +230,15 @@ def _stack(p: DraftedPattern):
 def edit_jacobian(design: Design, element_id: str, spacing: float | None = None) -> dict[str, PanelJacobian]:
     """Motion of every outline/hole polyline vertex per unit pointer motion,
     (k, 2, 2) per panel (see module doc for parameters: column 1 zero)."""
+    if element_id.startswith("pt:"):
+        _, piece, i = _piece_point(design, element_id)
+        if not any(st.panel == piece.name and st.kind != "seam" for st in design.strokes):
+            # the piece's panel is its outline as given: exact, no drafting (a
+            # FreeSewing piece has dozens of corners, each a handle)
+            idx, w = point_weights(piece, i, element_id)
+            exact = np.zeros((len(piece.outline), 2, 2))
+            exact[idx] = w[:, None, None] * np.eye(2)[None]
+            return {piece.name: PanelJacobian(exact, [np.zeros((len(h), 2, 2)) for h in piece.holes])}
     kw = {} if spacing is None else {"spacing": spacing}
     p0, ctx = draft_with_context(design, **kw)
     setter, q, G = _dofs(design, element_id, ctx)
@@ -198,10 +266,31 @@ def apply_edit(design: Design, element_id: str, dd) -> Design:
     held to the option's [min, max]). Every edit commits through here: a 2D
     handle drag and a 3D tug of the drape alike."""
     dd = np.asarray(dd, float).reshape(2)
-    _, ctx = draft_with_context(design)
+    ctx = None if element_id.startswith("pt:") else draft_with_context(design)[1]
     setter, q, G = _dofs(design, element_id, ctx)
     lo, hi = _bounds(design, element_id, len(q))
-    return setter(design, np.clip(q + G @ dd, lo, hi))
+    new = setter(design, np.clip(q + G @ dd, lo, hi))
+    if element_id.startswith("pt:"):
+        _check_piece_outline(new, element_id)
+    return new
+
+
+def _check_piece_outline(design: Design, element: str) -> None:
+    """Refuse a point move that leaves the piece's outline self-intersecting
+    or turned inside out, naming the piece and the point."""
+    _, piece, i = _piece_point(design, element)
+    P = np.asarray(piece.outline, float)
+    at = f"({P[i][0]:.3f}, {P[i][1]:.3f}) m"
+    hits = self_intersections(P)
+    if hits:
+        a, b = hits[0]
+        raise PatternError(
+            element,
+            f"moving point {i} of piece {piece.name!r} to {at} makes its outline self-intersect "
+            f"(edges {a} and {b}); move it less far",
+        )
+    if signed_area(P) <= 0:
+        raise PatternError(element, f"moving point {i} of piece {piece.name!r} to {at} turns its outline inside out")
 
 
 def edit_elements(design: Design) -> list[str]:
@@ -215,4 +304,7 @@ def edit_elements(design: Design) -> list[str]:
         pre = "hole" if d.kind == "hole" else "dart"
         names = ["position", "radius"] if d.kind == "hole" else ["position", "width", "length"]
         out += [f"{pre}:{d.id}:{n}" for n in names]
+    for pc in design.pieces:
+        if len(set(pc.corners)) >= 2:  # one corner alone has nothing to anchor a move
+            out += [f"pt:{pc.name}:{c}" for c in pc.corners]
     return out

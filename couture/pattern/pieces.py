@@ -54,6 +54,108 @@ def piece_panel(piece: Piece) -> Panel:
     return Panel(piece.name, P, holes, segments, grain=piece.grain)
 
 
+def segment_span(k: int, start: int, stop: int) -> np.ndarray:
+    """Outline indices of a piece segment from ``start`` to ``stop`` (both
+    included, wrapping; ``start == stop``: the whole outline round)."""
+    n = (stop - start) % k or k
+    return (start + np.arange(n + 1)) % k
+
+
+class PolylineSeg:
+    """A piece segment (a polyline from corner to corner) as a map u in
+    [0, 1] -> R^2, u its arc-length fraction, with the interface of
+    ``couture.pattern.draft.SegEval`` that curve strokes and their edit frames
+    use: a curve stroke displaces its vertices along the normal by the
+    stroke's spline at their u (the corners, u = 0 and 1, stay put), so the
+    vertex count never changes."""
+
+    def __init__(self, P: np.ndarray):
+        self.P = np.asarray(P, float)
+        d = np.linalg.norm(np.diff(self.P, axis=0), axis=1)
+        total = float(d.sum())
+        if total <= 0:
+            raise PatternError("pieces", "a segment has zero length")
+        self.u = np.concatenate([[0.0], np.cumsum(d)]) / total
+        self.n = len(self.P) - 1
+        # vertex tangents dX/du (central differences, one-sided at the ends): smooth enough for a frame
+        self._T = np.gradient(self.P, self.u, axis=0) if len(self.P) > 2 else np.tile(self.P[1] - self.P[0], (2, 1))
+        self.disp = None
+
+    def _interp(self, V: np.ndarray, u) -> np.ndarray:
+        u = np.clip(np.atleast_1d(np.asarray(u, float)), 0.0, 1.0)
+        return np.column_stack([np.interp(u, self.u, V[:, 0]), np.interp(u, self.u, V[:, 1])])
+
+    def base(self, u) -> np.ndarray:
+        return self._interp(self.P, u)
+
+    def tangent(self, u) -> np.ndarray:
+        return self._interp(self._T, u)
+
+    def normal(self, u) -> np.ndarray:
+        T = self.tangent(u)
+        n = np.stack([T[:, 1], -T[:, 0]], axis=1)
+        return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+    def eval(self, u) -> np.ndarray:
+        u = np.atleast_1d(np.asarray(u, float))
+        P = self.base(u)
+        if self.disp is not None:
+            P = P + self.disp(u)[:, None] * self.normal(u)
+        return P
+
+    def samples(self) -> np.ndarray:
+        """The segment's vertices (displaced), shape (n + 1, 2), both corners included."""
+        return self.eval(self.u)
+
+    def length(self) -> float:
+        return float(np.linalg.norm(np.diff(self.samples(), axis=0), axis=1).sum())
+
+
+def piece_segments(panel: Panel) -> dict[str, PolylineSeg]:
+    """The segments of a piece's panel as curve-stroke carriers, by name."""
+    k = len(panel.outline)
+    return {s.name: PolylineSeg(panel.outline[segment_span(k, s.start, s.stop)]) for s in panel.segments}
+
+
+def apply_piece_curves(panel: Panel, segs: dict[str, PolylineSeg]) -> None:
+    """Move the vertices of the panel's curved segments (those whose
+    ``disp`` a curve stroke set) onto their displaced positions, in place."""
+    k = len(panel.outline)
+    for s in panel.segments:
+        seg = segs.get(s.name)
+        if seg is not None and seg.disp is not None:
+            idx = segment_span(k, s.start, s.stop)
+            panel.outline[idx[1:-1]] = seg.samples()[1:-1]
+
+
+def point_weights(piece: Piece, i: int, element: str) -> tuple[np.ndarray, np.ndarray]:
+    """(indices, weights) of the outline points that follow a move of point
+    ``i`` (``pt:<piece>:<i>``): the point itself (weight 1) and every point
+    between it and the nearest corner on either side, by its arc-length
+    fraction toward that corner (1 at ``i``, 0 at the corner): the two
+    segments next to a corner stretch to it, keeping their shape's
+    character (a straight edge stays straight, a curve stays a curve), and
+    every other corner stays put. The weights are those of the piece as given."""
+    P = _array(piece, piece.outline, "outline")
+    k = len(P)
+    if not 0 <= i < k:
+        raise PatternError(element, f"piece {piece.name!r} has no outline point {i} (it has {k})")
+    others = sorted(set(piece.corners or [0]) - {i})
+    if not others:
+        raise PatternError(element, f"piece {piece.name!r} has no corner besides point {i} to anchor the move")
+    nxt = next((c for c in others if c > i), others[0])
+    prv = next((c for c in reversed(others) if c < i), others[-1])
+    idx, w = [np.array([i])], [np.array([1.0])]
+    for stop, step in ((nxt, 1), (prv, -1)):
+        n = ((stop - i) * step) % k
+        run = (i + step * np.arange(n + 1)) % k
+        d = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P[run], axis=0), axis=1))])
+        if d[-1] > 0:
+            idx.append(run[1:-1])
+            w.append(1.0 - d[1:-1] / d[-1])
+    return np.concatenate(idx), np.concatenate(w)
+
+
 def piece_panels(design: Design) -> list[Panel]:
     """Every free-form piece of the design as a panel; a 'flat' piece gets its
     plane placement here, a ringed one from :func:`piece_rings`."""

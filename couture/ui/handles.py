@@ -16,7 +16,10 @@ default skirt this puts
 - ``param:hip_ease`` on the hip point of a side seam,
 - ``param:waist_ease`` on a waist corner,
 - ``cv:<panel>:<segment>:<i>`` on its curve stroke's control point,
-- ``dart:<id>:position|width|length`` on the dart's mouth centre, leg and apex.
+- ``dart:<id>:position|width|length`` on the dart's mouth centre, leg and apex,
+- ``pt:<piece>:<i>`` (an imported piece's corner) on that corner itself, always
+  (its Jacobian is exact and costs no draft, so a FreeSewing piece's dozens of
+  corners are cheap; its sew-line points between corners get no handle).
 
 Two handles never share a vertex (nor come closer than ``min_gap``): an
 element whose best vertex is taken goes to its next best among the vertices
@@ -32,7 +35,7 @@ Pointer convention (what the ``edit`` message's ``d`` holds):
   handle slides along u, the option's direction at that point); d = [dp, 0].
   E.g. dragging the hem handle down by 5 cm makes the skirt 5 cm longer.
   The value is clamped to the option's [min, max].
-- ``cv:``, ``dart:``, ``hole:``: the pointer displacement Δp [m] itself
+- ``cv:``, ``dart:``, ``hole:``, ``pt:``: the pointer displacement Δp [m] itself
   (edit.py splits it in the element's frame).
 """
 
@@ -66,7 +69,7 @@ class Handle:
     vertex: int
     """vertex of ``panel``'s outline (or of its hole ``hole``) the handle sits on"""
     kind: str
-    """'param', 'cv', 'dart' or 'hole'"""
+    """'param', 'cv', 'dart', 'hole' or 'pt' (a piece's outline point)"""
     u: np.ndarray = field(default_factory=lambda: np.zeros(2))
     """param handles: the vertex's motion per unit option change dX_v/dp [m per option unit], shape (2,)"""
     lo: float = -np.inf
@@ -88,6 +91,8 @@ class Handle:
             return parts[1]
         if self.kind == "cv":
             return f"curve {parts[-1]}"
+        if self.kind == "pt":
+            return f"{parts[1]} corner {parts[-1]}"
         return f"{parts[0]} {parts[-1]}"
 
     def element_delta(self, d_pointer: np.ndarray) -> np.ndarray:
@@ -193,7 +198,14 @@ def plan_handles(design, pattern, *, min_gap: float = 0.03, near: float = 0.8) -
         if not best:
             continue
         top = max(b[0] for b in best)
-        cands = [b for b in best if b[0] >= near * top]
+        kind = _element_kind(el)
+        if kind == "pt":  # a piece point's handle is that point, wherever the others are
+            own = el.split(":")
+            cands = [b for b in best if b[2] == own[1] and b[3] == int(own[2]) and b[4] < 0] or [
+                b for b in best if b[0] >= top
+            ]
+        else:
+            cands = [b for b in best if b[0] >= near * top]
 
         def at(b) -> np.ndarray:
             pn = panels[b[2]]
@@ -204,11 +216,10 @@ def plan_handles(design, pattern, *, min_gap: float = 0.03, near: float = 0.8) -
             ds = [float(np.linalg.norm(p - q)) for n, q in taken if n == b[2]]
             return min(ds) if ds else np.inf
 
-        ok = [b for b in cands if free(b) >= min_gap] or cands
+        ok = cands if kind == "pt" else [b for b in cands if free(b) >= min_gap] or cands
         # first panel, then farthest from placed handles, then moves most
         b = min(ok, key=lambda b: (b[1], -min(free(b), 1e3), -b[0]))
         _, _, name, v, hole = b
-        kind = _element_kind(el)
         h = Handle(el, name, v, kind, hole=hole)
         if kind == "param":
             opt = options.get(el[6:])

@@ -5,7 +5,8 @@ Drawn from the drafted pattern (couture.pattern), nothing recomputed here:
 panel fills, outlines and holes, seam segments colour-matched pairwise, dart
 legs (the segments couture.pattern names ``dart:<id>:left|right``), the mesh
 (optional), draggable handles, one per editable element of the design
-(sloper options, curve control points, darts: see :mod:`couture.ui.handles`)
+(sloper options, curve control points, darts, imported pieces' corners: see
+:mod:`couture.ui.handles`)
 with their names shown for the selected handle only, and the marker of the
 material point picked in either view.
 
@@ -46,7 +47,13 @@ SEAM_PALETTE = np.array(
 )
 PANEL_FILL = (236, 228, 214)
 OUTLINE = (40, 40, 40)
-HANDLE_COLORS = {"param": (20, 90, 200), "cv": (20, 160, 120), "dart": (200, 0, 120), "hole": (200, 0, 120)}
+HANDLE_COLORS = {
+    "param": (20, 90, 200),
+    "cv": (20, 160, 120),
+    "dart": (200, 0, 120),
+    "hole": (200, 0, 120),
+    "pt": (90, 60, 30),
+}
 HANDLE_ACTIVE = (240, 160, 0)
 DART_COLOR = (200, 0, 120)
 HANDLE_RADIUS = 0.012

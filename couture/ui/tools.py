@@ -87,6 +87,10 @@ class PatternTools:
         seg = self.view2d.nearest_segment(p)
         if seg is None:
             return
+        if self.armed.tool == "dart" and seg[0] in {pc.name for pc in self.design().pieces}:
+            self.arm(None)
+            self.say(f"**Dart**: {seg[0]} is an imported piece: its darts come with it (sewn leg to leg); none added.")
+            return
         self.armed.picks.append(seg)
         picks = self.armed.picks
         if self.armed.tool == "seam" and len(picks) < 2:
