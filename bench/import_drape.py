@@ -138,7 +138,13 @@ def render(path: Path, title: str, mesh, x: np.ndarray, design_drafted) -> None:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("pairs", nargs="+", help="DESIGN.json DRAPE_DIR, repeated")
-    ap.add_argument("--out", default=str(RESULTS_DIR / "import"), help="results folder")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=RESULTS_DIR / "import",
+        metavar="DIR",
+        help="results folder: writes import_drape.json and the pictures there (default: %(default)s)",
+    )
     ap.add_argument("--no-png", action="store_true")
     args = ap.parse_args(argv)
     if len(args.pairs) % 2:
