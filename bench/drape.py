@@ -41,6 +41,7 @@ import resource
 import subprocess
 import sys
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -94,14 +95,62 @@ allowed ranges (couture.pattern.limits.FABRIC_LIMITS) the solver goals must
 hold at: stiff 2000 N/m, very soft 10 N/m with 1e-8 N m bending"""
 
 
+LIBRARY_MODULE = "couture.fabrics"
+"""the fabric library (issue 30) whose names ``--fabrics`` also takes"""
+
+
+def fabric_library() -> dict[str, Any]:
+    """name -> ``schemas.design.Fabric`` of every fabric in the library
+    (``couture.fabrics``, imported only when a name is not one of
+    ``FABRICS``); a LookupError naming the module where it is missing."""
+    import importlib
+
+    try:
+        lib = importlib.import_module(LIBRARY_MODULE)
+    except ImportError as e:
+        raise LookupError(f"the fabric library {LIBRARY_MODULE} is not importable here ({e})") from None
+    return {name: lib.get(name) for name in lib.names()}
+
+
+def check_fabrics(names: list[str], library: Mapping[str, Any] | None = None) -> Mapping[str, Any]:
+    """The library the names need (empty when all are ``FABRICS`` variants),
+    ``library`` or else ``fabric_library()``; a ValueError naming every
+    unknown name and the choices (or the missing library)."""
+    extra = [n for n in names if n not in FABRICS]
+    if not extra:
+        return {} if library is None else library
+    if library is None:
+        try:
+            library = fabric_library()
+        except LookupError as e:
+            raise ValueError(f"--fabrics {', '.join(extra)}: not a variant ({', '.join(FABRICS)}) and {e}") from None
+    unknown = [n for n in extra if n not in library]
+    if unknown:
+        raise ValueError(
+            f"--fabrics: unknown {', '.join(unknown)}; choose from {', '.join([*FABRICS, *sorted(library)])}"
+        )
+    return library
+
+
 def with_options(
-    design: Any, *, friction: bool | None = None, fine_vertices: int | None = None, fabric: str = "design"
+    design: Any,
+    *,
+    friction: bool | None = None,
+    fine_vertices: int | None = None,
+    fabric: str = "design",
+    library: Mapping[str, Any] | None = None,
 ) -> Any:
     """A copy of ``design`` with friction switched, another fine-level size
-    and/or a fabric variant of ``FABRICS``."""
+    and/or another fabric: a variant of ``FABRICS``, or a library fabric
+    (``library`` [name -> Fabric], default ``fabric_library()``) that replaces
+    the design's fabric whole (the panels' own ``panel_fabrics``, a
+    waistband's interfacing say, stay)."""
     import msgspec
 
-    if FABRICS[fabric]:
+    if fabric not in FABRICS:
+        lib = check_fabrics([fabric], library)
+        design = msgspec.structs.replace(design, fabric=lib[fabric])
+    elif FABRICS[fabric]:
         design = msgspec.structs.replace(design, fabric=msgspec.structs.replace(design.fabric, **FABRICS[fabric]))
     if friction is not None:
         design = msgspec.structs.replace(design, scene=msgspec.structs.replace(design.scene, friction=friction))
@@ -552,7 +601,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--fabrics",
         default="design",
-        help=f"fabric variants, comma separated, of {', '.join(FABRICS)} (stiff: 2000 N/m; soft: 10 N/m, 1e-8 N m)",
+        help=f"fabrics, comma separated: variants {', '.join(FABRICS)} (stiff: 2000 N/m; soft: 10 N/m, 1e-8 N m) "
+        "or fabric library names (`couture fabrics`), which replace the design's fabric",
     )
     ap.add_argument("--max-seconds", type=float, default=120.0, help="[s] cap on each level's solve")
     ap.add_argument(
@@ -572,6 +622,11 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(sweep_one(a.sweep_one, a.solvers[0], a.max_seconds, a.sweep_design)))
         return 0
 
+    fabrics = [f for f in a.fabrics.split(",") if f]
+    try:
+        library = check_fabrics(fabrics)
+    except ValueError as e:
+        ap.error(str(e))
     out_dir = Path(a.out)
     out_dir.mkdir(parents=True, exist_ok=True)
     warm: dict[str, float] = {}
@@ -582,10 +637,6 @@ def main(argv: list[str] | None = None) -> int:
 
     cases: list[dict[str, Any]] = []
     variants = [True, False] if a.frictionless else [True]
-    fabrics = [f for f in a.fabrics.split(",") if f]
-    unknown = sorted(set(fabrics) - set(FABRICS))
-    if unknown:
-        ap.error(f"--fabrics: unknown {', '.join(unknown)}; choose from {', '.join(FABRICS)}")
     total = len(a.designs) * len(a.solvers) * len(variants) * len(fabrics)
     for name_or_path in a.designs:
         name, design = load(name_or_path)
@@ -600,7 +651,7 @@ def main(argv: list[str] | None = None) -> int:
                     )
                     print(f"{label}...", file=sys.stderr, flush=True)
                     case = drape_case(
-                        with_options(design, friction=friction, fabric=fabric),
+                        with_options(design, friction=friction, fabric=fabric, library=library),
                         method,
                         max_seconds=a.max_seconds,
                         levels=levels,

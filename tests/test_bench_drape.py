@@ -113,6 +113,45 @@ def test_fabric_variants_are_the_ends_of_the_allowed_ranges():
         assert d.sloper == design.sloper and d.resolution == design.resolution
 
 
+def test_library_fabric_names_replace_the_design_fabric(monkeypatch, capsys):
+    """--fabrics takes a library name besides the variants: the library's fabric
+    replaces the design's whole; an unknown name is refused naming the choices,
+    a missing library naming the module. (The library is passed as a mapping
+    here, so the test holds with or without couture.fabrics on the branch.)"""
+    import sys
+
+    from bench.drape import check_fabrics, load, with_options
+    from couture.pattern.limits import check_simulation_values
+    from schemas.design import Fabric
+
+    denim = Fabric(
+        name="denim",
+        stretch_stiffness=3160.0,
+        warp_stiffness=4000.0,
+        weft_stiffness=2500.0,
+        shear_stiffness=122.5,
+        bend_warp=3e-5,
+        bend_weft=1.5e-5,
+        bend_bias=2.25e-5,
+        area_density=0.4,
+    )
+    library = {"denim": denim, "chiffon": Fabric(name="chiffon", stretch_stiffness=346.0, area_density=0.04)}
+    _, design = load("default_skirt")
+    d = with_options(design, fabric="denim", library=library, friction=False)
+    assert d.fabric == denim and not d.scene.friction and d.sloper == design.sloper
+    check_simulation_values(d)
+    assert check_fabrics(["design", "stiff"]) == {}  # variants alone never import the library
+    assert check_fabrics(["soft", "chiffon"], library) is library
+    with pytest.raises(ValueError, match=r"unknown silk, tweed; choose from design, stiff, soft, chiffon, denim"):
+        check_fabrics(["denim", "silk", "tweed"], library)
+    monkeypatch.setitem(sys.modules, "couture.fabrics", None)  # as on a checkout without the library
+    with pytest.raises(ValueError, match=r"--fabrics denim: not a variant .* couture.fabrics is not importable"):
+        check_fabrics(["design", "denim"])
+    with pytest.raises(SystemExit) as e:
+        bench.main(["--designs", "default_skirt", "--fabrics", "design,denim", "--no-sweep"])
+    assert e.value.code == 2 and "couture.fabrics is not importable" in capsys.readouterr().err
+
+
 def test_an_iteration_is_a_linear_solve_retries_and_continuation_included():
     """Newton's accepted steps undercount its work: a failed factorization, a
     shift retried and every step of a dynamics phase are each a solve."""

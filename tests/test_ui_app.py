@@ -96,11 +96,14 @@ def test_dead_node_is_shown_and_last_drape_stays(ui):
 
 
 def test_colour_maps_draw_bands_with_legend(ui):
-    for field in ("strain", "stress"):
+    for field in ("strain", "stress", "fabric_strain", "bias_strain"):
         ui.controls.field.value = field
         ui.controls.field_chosen()
         assert ui.view3d.scale is not None and "background:rgb" in ui.controls.legend.content
         assert any(h.visible for h in ui.view3d.bands) and not ui.view3d.plain.visible
+    share = ui.view3d.field_values()  # the last one: bias stretch over the fabric's bias limit [%]
+    assert share is not None and len(share) == ui.view3d.mesh.n_triangles and np.isfinite(share).all()
+    assert "% of limit" in ui.controls.legend.content
     ui.controls.field.value = "pressure"
     ui.controls.field_chosen()
     p = ui.view3d.field_values()

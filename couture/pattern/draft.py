@@ -441,13 +441,13 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
     for st in design.strokes:
         if st.kind != "grain":
             continue
-        found = next((p for p in panels if p.name == st.panel), None)
-        if found is None:
+        cut = next((p for p in panels if p.name == st.panel), None)
+        if cut is None:
             raise PatternError(st.id, f"grain stroke on {st.panel!r}: no panel of that name")
         if st.panel in grained:
             raise PatternError(st.id, f"panel {st.panel!r} already has a grain stroke")
         grained.add(st.panel)
-        found.grain = _num(st.id, st.params, "angle", -math.pi, math.pi)
+        cut.grain = _num(st.id, st.params, "angle", -math.pi, math.pi)
 
     # seams
     seams: list[SeamSpec] = []

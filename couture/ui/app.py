@@ -148,7 +148,7 @@ class CoutureUI:
         self.server2d.gui.main_panel.set_width(PANEL_WIDTH_2D)
         self.view3d = DrapeView(self.server3d, n_bands=c.n_bands, show_body=c.show_body)
         self.view2d = PatternView(self.server2d)
-        self.view3d.set_fabric(self.design.fabric, self.design.scene.contact_stiffness_scale)
+        self.view3d.set_fabric(self.design.fabric, self.design.scene.contact_stiffness_scale, self.design.panel_fabrics)
         self.controls = Controls(
             self.server3d.gui,
             lambda: self.design,
@@ -389,7 +389,7 @@ class CoutureUI:
 
     def _adopt(self, design: Design) -> None:
         self.controls.show_design(design)
-        self.view3d.set_fabric(design.fabric, design.scene.contact_stiffness_scale)
+        self.view3d.set_fabric(design.fabric, design.scene.contact_stiffness_scale, design.panel_fabrics)
         shown = self.view3d.body_name
         try:
             self.view3d.set_body(design.body.name)

@@ -15,7 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-FIELDS = ("none", "strain", "stress", "pressure")
+FABRIC_FIELDS = ("fabric_strain", "warp_strain", "weft_strain", "bias_strain")
+"""CLO's fabric mode: strain as a share of the fabric's own wearable stretch
+limit [%], the largest of warp, weft and bias, or one direction alone
+(``fabric_strain_shares``)"""
+
+FIELDS = ("none", "strain", "stress", "pressure") + FABRIC_FIELDS
 """colour-map choices offered by the 3D view"""
 
 
@@ -92,6 +97,99 @@ def principal_stress(
     rad = np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
     ev = np.stack([0.5 * tr - rad, 0.5 * tr + rad], axis=-1)
     return ev / np.where(J > 1e-12, J, 1.0)[:, None]
+
+
+WEARABLE_TENSION = 98.07
+"""[N/m] the standard force per width at which a fabric reaches its wearable
+stretch limit: 100 gf/cm, the top load of FAST-3's extensibility test (E100,
+warp and weft extension at 100 gf/cm). It sits above draping (a drape loads
+cloth with ~1-20 N/m, the range the library's stiffnesses are secants over)
+and below strength testing (KES-F EMT's 500 gf/cm); by Laplace's law p = T / r
+it presses a 12 cm-radius waist with 0.8 kPa."""
+
+
+def stretch_limits(fabric, tension: float = WEARABLE_TENSION) -> np.ndarray:
+    """(3,) the fabric's wearable stretch limits along warp, weft and bias
+    (engineering strain, dimensionless): the strain of a strip cut in that
+    direction and pulled with ``tension`` [N/m] alone (uniaxial) in the
+    model's small-strain reading, ε = T nᵀ C⁻¹ n for the fabric's membrane C
+    in its axes (``couture.cloth.material.orthotropic_elasticity``, warp,
+    weft, engineering shear) and n = (c², s², c s) of the strip's direction
+    at β = 0, π/2, π/4 from the warp. Warp and weft give T / E1 and T / E2,
+    the bias T (1/E1 + 1/E2 + 1/G12 - 2 ν12/E1) / 4: a woven's soft shear
+    makes its bias limit the largest. An isotropic fabric gets T / E in every
+    direction. Raises FabricError (naming the field) for a fabric the model
+    cannot build, ValueError for a tension that is not positive."""
+    from couture.cloth.material import orthotropic_elasticity
+
+    t = float(tension)
+    if not (np.isfinite(t) and t > 0):
+        raise ValueError(f"stretch limit tension {tension!r} N/m: must be positive and finite")
+    compliance = np.linalg.inv(orthotropic_elasticity(fabric))
+    c = np.sqrt(0.5)
+    n = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [c * c, c * c, c * c]])
+    return t * np.einsum("di,ij,dj->d", n, compliance, n)
+
+
+def fiber_strains(X: np.ndarray, x: np.ndarray, tris: np.ndarray, warp: np.ndarray) -> np.ndarray:
+    """Per-triangle stretch along warp, weft and bias, shape (m, 3),
+    engineering strain |F d| - 1 (dimensionless, negative: compressed) for the
+    rest-space unit direction d: the warp ``warp`` (m, 2) (its panel's grain,
+    ``GarmentMesh.warp_directions``), the weft (the warp turned -90°), and of
+    the two biases (warp ± weft)/√2 the more stretched one."""
+    F = deformation_gradients(X, x, tris)
+    a = np.asarray(warp, np.float64).reshape(-1, 2)
+    if len(a) != len(F):
+        raise ValueError(f"fiber_strains: {len(a)} warp directions for {len(F)} triangles")
+    b = np.column_stack([a[:, 1], -a[:, 0]])  # weft (cos g, sin g) for warp (-sin g, cos g)
+    r = np.sqrt(0.5)
+
+    def stretch(d: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(np.einsum("mij,mj->mi", F, d), axis=1) - 1.0
+
+    bias = np.maximum(stretch(r * (a + b)), stretch(r * (a - b)))
+    return np.column_stack([stretch(a), stretch(b), bias])
+
+
+@dataclass
+class FabricAxes:
+    """Per-triangle fabric directions and stretch limits of a garment
+    (``fabric_axes``): what the fabric-mode maps read."""
+
+    warp: np.ndarray
+    """unit warp direction of every triangle in material space, (m, 2)"""
+    limit: np.ndarray
+    """wearable stretch limit along warp, weft and bias of every triangle's
+    fabric (``stretch_limits``), (m, 3), dimensionless"""
+
+
+def fabric_axes(mesh, fabric, panel_fabrics: dict | None = None, tension: float = WEARABLE_TENSION) -> FabricAxes:
+    """Each triangle's warp (its panel's grain) and its fabric's stretch limits
+    (its panel's own in ``panel_fabrics``, else ``fabric``); raises
+    FabricError for a panel the mesh lacks or a fabric the model cannot build."""
+    from couture.cloth.material import resolve
+
+    mat = resolve(mesh, fabric, panel_fabrics)
+    limits = np.array([stretch_limits(f, tension) for f in mat.fabrics]).reshape(-1, 3)
+    return FabricAxes(mat.warp, limits[mat.tri_fabric])
+
+
+def fabric_strain_shares(strains: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """Strain as a share of the stretch limit [%], (m, 3) for ``strains`` and
+    ``limit`` (m, 3) (or (3,)): 100 where a direction reaches its limit,
+    negative where it is compressed."""
+    return 100.0 * np.asarray(strains, np.float64) / np.asarray(limit, np.float64)
+
+
+def fabric_strain(shares: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(share [%], dominant direction) per triangle from ``fabric_strain_shares``
+    (m, 3): the largest stretch share over warp, weft and bias, 0 where all
+    are compressed (a compressed fabric buckles into wrinkles, it does not
+    press on the wearer), and which direction it is (0 warp, 1 weft, 2 bias,
+    CLO's "dominant direction")."""
+    s = np.asarray(shares, np.float64)
+    dominant = np.argmax(s, axis=1)
+    return np.maximum(s[np.arange(len(s)), dominant], 0.0), dominant
 
 
 def rest_vertex_areas(X: np.ndarray, tris: np.ndarray) -> np.ndarray:
@@ -250,6 +348,11 @@ def auto_scale(field: str, values: np.ndarray, n_bands: int = 9) -> ColorScale:
     pressure is sequential from zero."""
     v = np.asarray(values, np.float64)
     v = v[np.isfinite(v)]
+    if field == "fabric_strain":  # CLO's fabric mode: no strain to the limit (top band: at or past it)
+        return ColorScale(0.0, 100.0, n_bands, False, "% of limit", "strain / fabric's stretch limit")
+    if field in FABRIC_FIELDS:
+        name = field.split("_")[0]
+        return ColorScale(-100.0, 100.0, n_bands, True, "% of limit", f"{name} strain / its stretch limit")
     if field == "pressure":
         hi = float(np.percentile(v, 98)) if v.size else 1.0
         return ColorScale(0.0, hi if hi > 0 else 1.0, n_bands, False, "Pa", "contact pressure")
@@ -272,10 +375,24 @@ def field_values(
     contact_offset: float = 0.01,
     contact_stiffness: float | None = None,
     contact_smoothing: float = 0.001,
+    axes: FabricAxes | None = None,
 ) -> np.ndarray | None:
     """Per-triangle scalar for a colour-map field (None for 'none', or for
     'pressure' without a body). Pressure, defined per vertex, is averaged to
-    triangles."""
+    triangles. The fabric fields (``FABRIC_FIELDS``) read each triangle's warp
+    and stretch limits from ``axes`` (``fabric_axes``); without it, an
+    isotropic fabric of ``stretch_stiffness`` and ``poisson_ratio`` on the
+    straight grain."""
+    if field in FABRIC_FIELDS:
+        if axes is None:
+            from schemas.design import Fabric
+
+            iso = Fabric(stretch_stiffness=stretch_stiffness, poisson_ratio=poisson_ratio)
+            axes = FabricAxes(np.tile([0.0, 1.0], (len(tris), 1)), np.tile(stretch_limits(iso), (len(tris), 1)))
+        shares = fabric_strain_shares(fiber_strains(X, x, tris, axes.warp), axes.limit)
+        if field == "fabric_strain":
+            return fabric_strain(shares)[0]
+        return shares[:, FABRIC_FIELDS.index(field) - 1]
     if field == "strain":
         return principal_strain(X, x, tris)[:, 1]
     if field == "stress":

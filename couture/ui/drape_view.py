@@ -13,6 +13,7 @@ updated: the fast path.
 
 from __future__ import annotations
 
+import logging
 import threading
 from pathlib import Path
 from typing import Callable
@@ -26,6 +27,8 @@ from couture.ui.geometry import CameraState, MaterialPoint, closest_material_poi
 from couture.ui.state import VISER_DRAG_PHASE, Phase
 from couture.ui.widgets import ClientFraming, fit_distance
 from schemas.design import Fabric
+
+log = logging.getLogger(__name__)
 
 MANNEQUIN_OBJ = Path(__file__).resolve().parents[1] / "assets" / "mannequin" / "body_a_pose.obj"
 
@@ -73,6 +76,10 @@ class DrapeView:
         self.scale: colormaps.ColorScale | None = None
         self.fabric = Fabric()
         """material of the stress and pressure maps"""
+        self.panel_fabrics: dict[str, Fabric] = {}
+        """panels' own fabrics (``Design.panel_fabrics``) for the fabric-mode maps"""
+        self._axes: colormaps.FabricAxes | None = None
+        """the fabric-mode maps' per-triangle warp and limits for this mesh and these fabrics"""
         self.contact_scale = 1.0
         """the design's factor on the solver's contact stiffness (pressure map)"""
         self.mesh_uploads = 0
@@ -173,25 +180,38 @@ class DrapeView:
         and the drape on screen stays."""
         with self._lock:
             if self.mesh is not None and same_geometry(self.mesh, mesh):
+                if not (
+                    np.array_equal(self.mesh.tri_panel, mesh.tri_panel)
+                    and np.array_equal(self.mesh.panel_grain, mesh.panel_grain)
+                    and self.mesh.panel_names == mesh.panel_names
+                ):
+                    self._axes = None
                 self.mesh = mesh
                 return
             self.mesh = mesh
+            self._axes = None
             self.x = np.asarray(mesh.x0, np.float64)
             self._band_tris = [None] * self.n_bands
             self.plain.faces = mesh.tris.astype(np.uint32)
             self.mesh_uploads += 1
             self._draw()
 
-    def set_fabric(self, fabric: Fabric, contact_scale: float | None = None) -> None:
-        """The material of the stress and pressure maps, and the design's
-        ``scene.contact_stiffness_scale`` (None: keep the current one)."""
+    def set_fabric(
+        self, fabric: Fabric, contact_scale: float | None = None, panel_fabrics: dict[str, Fabric] | None = None
+    ) -> None:
+        """The material of the stress, pressure and fabric-mode maps, the
+        design's ``scene.contact_stiffness_scale`` (None: keep the current
+        one) and its ``panel_fabrics`` (None: keep the current ones)."""
         with self._lock:
             scale = self.contact_scale if contact_scale is None else float(contact_scale)
-            if fabric == self.fabric and scale == self.contact_scale:
+            panels = self.panel_fabrics if panel_fabrics is None else dict(panel_fabrics)
+            if fabric == self.fabric and scale == self.contact_scale and panels == self.panel_fabrics:
                 return
             self.fabric = fabric
             self.contact_scale = scale
-            if self.field in ("stress", "pressure"):
+            self.panel_fabrics = panels
+            self._axes = None
+            if self.field in ("stress", "pressure") + colormaps.FABRIC_FIELDS:
                 self._draw()
 
     def set_field(self, field: str) -> None:
@@ -211,9 +231,30 @@ class DrapeView:
 
     # -- drawing ------------------------------------------------------------------
 
+    def fabric_axes(self) -> colormaps.FabricAxes | None:
+        """Each triangle's warp and stretch limits (cached per mesh and fabrics);
+        None without a mesh. Panel fabrics naming no panel of this mesh (a
+        design ahead of its mesh) are left out until the mesh catches up."""
+        if self.mesh is None:
+            return None
+        if self._axes is None:
+            names = set(self.mesh.panel_names)
+            panels = {k: v for k, v in self.panel_fabrics.items() if k in names}
+            try:
+                self._axes = colormaps.fabric_axes(self.mesh, self.fabric, panels)
+            except ValueError as e:  # a fabric the model cannot build: the map is left off, the drape stays
+                log.warning("fabric-mode map: %s", e)
+                return None
+        return self._axes
+
     def field_values(self) -> np.ndarray | None:
         if self.mesh is None or self.x is None:
             return None
+        axes = None
+        if self.field in colormaps.FABRIC_FIELDS:
+            axes = self.fabric_axes()
+            if axes is None:
+                return None
         return colormaps.field_values(
             self.field,
             self.mesh.X,
@@ -225,6 +266,7 @@ class DrapeView:
             contact_stiffness=colormaps.solver_contact_stiffness(
                 self.fabric.stretch_stiffness, self.fabric.poisson_ratio, self.contact_scale
             ),
+            axes=axes,
         )
 
     def _draw(self) -> None:
