@@ -34,6 +34,29 @@ def penelope() -> Design:
     return design
 
 
+def _curve_gap(A: np.ndarray, B: np.ndarray) -> float:
+    """Largest distance [m] from a vertex of either closed polyline to the other
+    one: the same sew line whatever its vertices (the importer merges vertices
+    closer than 0.3 mm, such as a waistband's split points next to a corner)."""
+
+    def one_way(P: np.ndarray, Q: np.ndarray) -> float:
+        a, b = Q, np.roll(Q, -1, axis=0)
+        ab = b - a
+        t = np.einsum("pqk,qk->pq", P[:, None, :] - a[None], ab) / np.maximum(np.einsum("qk,qk->q", ab, ab), 1e-300)
+        near = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
+        return float(np.linalg.norm(P[:, None, :] - near, axis=2).min(axis=1).max())
+
+    return max(one_way(A, B), one_way(B, A))
+
+
+def _centroid(P: np.ndarray) -> np.ndarray:
+    """The polygon's area centroid: where its vertices lie along its edges does not move it."""
+    x, y = P[:, 0], P[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    c = x * yn - xn * y
+    return np.array([((x + xn) * c).sum(), ((y + yn) * c).sum()]) / (3.0 * c.sum())
+
+
 def _corner(design: Design, name: str, k: int = 1) -> int:
     return next(pc for pc in design.pieces if pc.name == name).corners[k]
 
@@ -145,8 +168,7 @@ def test_export_writes_an_edited_piece_back(tmp_path, penelope):
     assert sorted(got) == sorted(p.name for p in pieces) == sorted(p.name for p in pat.panels)
     for p in pieces:
         g = got[p.name]
-        shift = g.sew[0] - p.sew[0]
-        assert np.abs(g.sew - shift - p.sew).max() < 1e-6
+        assert _curve_gap(g.sew - _centroid(g.sew), p.sew - _centroid(p.sew)) < 1e-6, p.name
         # the exported sew line is the drafted (edited) outline, laid out on the sheet
         P = pat.panel(p.name).outline
         assert p.sew.shape == P.shape and np.abs((p.sew - p.sew[0]) - (P - P[0])).max() < 1e-9
@@ -253,6 +275,6 @@ def test_couture_export_cli_writes_an_edited_imported_design(tmp_path, penelope)
         assert sorted(got) == sorted(p.name for p in pat.panels), f
         for p in pat.panels:
             S, P = got[p.name].sew, p.outline
-            assert S.shape == P.shape and np.abs((S - S.mean(0)) - (P - P.mean(0))).max() < 1e-6, (f, p.name)
+            assert _curve_gap(S - _centroid(S), P - _centroid(P)) < 1e-6, (f, p.name)
     # back_left and back_right were mirror images; the edit tells them apart
     assert np.abs(pat.panel("back_left").outline - draft(penelope).panel("back_left").outline).max() > 0.009
