@@ -34,6 +34,7 @@ import time
 from pathlib import Path
 
 from bench import add_out_arg, source_commit, write_results
+from couture.adjust.settings import DEFAULTS
 from couture.client import adjust_on_bus, solver_session
 from couture.pattern.io import EXAMPLES
 from couture.solvers import SOLVERS
@@ -118,8 +119,7 @@ def main(argv: list[str] | None = None) -> int:
                         amount,
                         vertices=n,
                         name=case_name,
-                        max_iters=a.iters,
-                        gradient_steps=a.gradient_steps,
+                        settings=DEFAULTS.with_(updates=a.iters, gradient_steps=a.gradient_steps),
                     )
                     png = None
                     if a.png_all or (solver == names[0] and n == max(a.vertices)):

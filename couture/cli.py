@@ -387,17 +387,51 @@ def _parser() -> argparse.ArgumentParser:
     ad.add_argument(
         "--vertices", type=int, default=None, help="coarse mesh size (default the design's resolution.coarse_vertices)"
     )
-    ad.add_argument("--iters", type=int, default=5, help="at most this many fixed-point updates")
-    ad.add_argument("--stop-stretch", type=float, default=0.995, help="stop once the mean stretch (eq. 8) reaches this")
+    from couture.adjust.settings import DEFAULTS as ADJ
+    from couture.adjust.settings import GOAL as ADJ_GOAL
+
+    ad.add_argument(
+        "--iters",
+        type=int,
+        default=None,
+        help=f"at most this many fixed-point updates (default {ADJ.updates})",
+    )
+    ad.add_argument(
+        "--stop-stretch",
+        type=float,
+        default=None,
+        help=f"stop the updates once the mean stretch (eq. 8) reaches this (default {ADJ.stop_stretch})",
+    )
     ad.add_argument("--no-equalize", action="store_true", help="leave the seam lengths as the embedding makes them")
     ad.add_argument(
         "--gradient-steps",
         type=int,
-        default=0,
+        default=None,
         metavar="N",
         help="after the fixed point, up to N Gauss-Newton steps on the distance to the target and the drape's "
         "stretch, with couture's design sensitivity (each re-simulated on the solver nodes, kept only if it lowers "
-        "the Hausdorff distance and keeps the mean stretch >= 0.98); default 0",
+        f"the Hausdorff distance and keeps the mean stretch >= 0.98); default {ADJ.gradient_steps}",
+    )
+    ad.add_argument(
+        "--stretch-weight",
+        type=float,
+        default=None,
+        metavar="W",
+        help=f"the gradient steps' stretch weight (default {ADJ.stretch_weight:g})",
+    )
+    ad.add_argument(
+        "--max-solves",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"re-simulated patterns in all, the flattening-only one included (default {ADJ.max_solves})",
+    )
+    ad.epilog = (
+        f"The defaults were chosen once for every example design and edit (couture bench adjust_sweep).\n"
+        f"Goal: Hausdorff <= {ADJ_GOAL.hausdorff_pct:g} % of height, mean stretch >= {ADJ_GOAL.stretch:g}, "
+        f"<= {ADJ_GOAL.solves} re-simulated patterns, <= {ADJ_GOAL.seconds:g} s.\n"
+        "exit status:\n  0  goal met; every output written\n  1  error (a refused edit says why)\n"
+        "  2  bad command line\n  3  goal not met: every output written, the reasons measured and printed"
     )
     add_bus_args(ad)
 
@@ -1215,6 +1249,8 @@ def export_pattern(args: argparse.Namespace) -> int:
 def adjust(args: argparse.Namespace) -> int:
     """``couture adjust``: see its --help."""
     from couture.adjust.pipeline import plot_case, write_outputs
+    from couture.adjust.settings import DEFAULTS
+    from couture.adjust.verdict import assess, body_for
     from couture.bus import bus_config_from_args
     from couture.client import adjust_on_bus, load_design, solver_session
 
@@ -1241,12 +1277,18 @@ def adjust(args: argparse.Namespace) -> int:
             amount,
             vertices=args.vertices,
             name=Path(args.pattern).stem,
-            max_iters=args.iters,
-            stop_stretch=args.stop_stretch,
+            settings=DEFAULTS.with_(
+                updates=args.iters,
+                stop_stretch=args.stop_stretch,
+                gradient_steps=args.gradient_steps,
+                stretch_weight=args.stretch_weight,
+                max_solves=args.max_solves,
+            ),
             equalize=not args.no_equalize,
-            gradient_steps=args.gradient_steps,
             log=lambda s: print(s, file=sys.stderr, flush=True),
         )
+    verdict = assess(case, body=body_for(design))
+    case.verdict = verdict
     write_outputs(case, out)
     plot_case(case, out / "adjust.png")
     s = case.summary()
@@ -1257,7 +1299,7 @@ def adjust(args: argparse.Namespace) -> int:
         + (
             f"after {s['final']['gradient_steps_taken']} gradient steps: Hausdorff {s['final']['hausdorff_pct']:.2f} %, "
             f"stretch {s['final']['stretch']:.4f}; "
-            if args.gradient_steps
+            if case.gradient
             else ""
         )
         + f"edit to pattern {s['timings_s']['edit_to_pattern']:.1f} s; solves per node {counts}; "
@@ -1268,7 +1310,8 @@ def adjust(args: argparse.Namespace) -> int:
         f"[adjust] wrote {out}/pattern.dxf, .svg, .pdf, panels.json, drape_*.obj, adjust.json, adjust.png",
         file=sys.stderr,
     )
-    return 0
+    print(f"[adjust] {verdict.text()}", file=sys.stderr)
+    return 0 if verdict.met else 3
 
 
 def write_obj(path: Path, x, tris, uv=None) -> None:

@@ -207,12 +207,20 @@ def test_fitted_design_achieves_the_asked_change(path, edit, amount, low, high):
     (before the loop was honoured the dress's waist got 0.3-1.0 cm of 4)."""
     from couture.adjust.fixed_point import local_simulator
     from couture.adjust.service import run_adjustment
+    from couture.adjust.settings import DEFAULTS
     from couture.client import load_design
 
     design = load_design(path)
     if low is None:  # the skirt rests on the body at the waist: tighter only stretches it
         with pytest.raises(ValueError, match="presses the cloth into the body"):
-            run_adjustment(design, edit, amount, lambda m: local_simulator(m, design), vertices=250, max_iters=0)
+            run_adjustment(
+                design,
+                edit,
+                amount,
+                lambda m: local_simulator(m, design),
+                vertices=250,
+                settings=DEFAULTS.with_(updates=0),
+            )
         return
     out = run_adjustment(design, edit, amount, lambda m: local_simulator(m, design), vertices=250)
     assert low < out.achieved / amount < high, out.text()

@@ -87,6 +87,8 @@ class AdjustResult:
     wall_time_s: float
     patterns: list[np.ndarray] = field(default_factory=list)
     """the pattern of every iteration"""
+    drapes: list[np.ndarray] = field(default_factory=list)
+    """the simulated drape of every iteration"""
 
 
 def undo_compression(t_target: np.ndarray, t_src3: np.ndarray, T_src: np.ndarray) -> np.ndarray:
@@ -228,6 +230,7 @@ def adjust(
         stopped=stopped,
         wall_time_s=time.perf_counter() - t0,
         patterns=patterns,
+        drapes=drapes,
     )
 
 

@@ -141,6 +141,7 @@ def gradient_polish(
     stretch_floor: float = 0.98,
     lengths: tuple[float, ...] = (1.0, 0.5),
     reuse_jacobian: bool = True,
+    max_solves: int | None = None,
     equalize: bool = True,
     height: float = MANNEQUIN_HEIGHT,
     log: Callable[[str], None] | None = print,
@@ -151,7 +152,8 @@ def gradient_polish(
     0: distance only) keeps the drape's stretch in the objective; a step is
     kept only if its drape is closer (Hausdorff) and its mean stretch stays at
     or above ``min(stretch_floor, the current one)``. Stops at the first step
-    none of whose ``lengths`` is kept."""
+    none of whose ``lengths`` is kept, or once ``max_solves`` trials (each a
+    re-simulation) are spent."""
     say = log or (lambda s: None)
     n = mesh.n_vertices
     edges = mesh_edges(mesh.tris)
@@ -160,7 +162,11 @@ def gradient_polish(
     S_now = float(stretch(t_g, frames3(x, mesh.tris)).mean())
     out: list[GradientStep] = []
     J = None
+    spent = 0
     for k in range(1, steps + 1):
+        if max_solves is not None and spent >= max_solves:
+            say(f"[adjust] gradient steps: the budget of {max_solves} solves is spent; stopped")
+            break
         t0 = time.perf_counter()
         tj = 0.0
         if J is None or not reuse_jacobian:
@@ -172,6 +178,9 @@ def gradient_polish(
         floor = min(stretch_floor, S_now)
         taken, tried = None, 0
         for a in lengths:
+            if max_solves is not None and spent >= max_solves:
+                break
+            spent += 1
             Xa = X + a * dX
             if equalize:
                 Xa = equalize_seams(mesh, Xa)

@@ -13,7 +13,7 @@ import json
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 import msgspec
 import numpy as np
@@ -24,6 +24,7 @@ from schemas.design import Design
 from .fixed_point import MANNEQUIN_HEIGHT, AdjustResult, Simulate, adjust
 from .geometry import edges2, frames3, stretch
 from .seams import drafted_from_mesh, mirror_asymmetry, seam_lengths
+from .settings import DEFAULTS, AdjustSettings
 from .target import Target, hem_edit, opening_edges, waist_edit, waist_room
 
 EDITS = ("hem", "waist")
@@ -100,6 +101,13 @@ class CaseResult:
     X_final: np.ndarray | None = None
     """the pattern written out: after the gradient steps, else the fixed point's"""
     x_final: np.ndarray | None = None
+    verdict: Any = None
+    """:class:`~couture.adjust.verdict.Verdict` once assessed (written into the summary)"""
+
+    @property
+    def solves(self) -> int:
+        """Re-simulated patterns: the flattening-only one, every update's, every gradient step trial's."""
+        return len(self.result.history) + sum(g.solves for g in self.gradient)
 
     @property
     def X_out(self) -> np.ndarray:
@@ -147,6 +155,8 @@ class CaseResult:
                 "mean_distance_mm": 1e3 * best.mean_distance_m,
             },
             "gradient_steps": [asdict(g) for g in self.gradient],
+            "solves": self.solves,
+            "verdict": None if self.verdict is None else self.verdict.as_dict(),
             "final": self._final_metrics(),
             "updates": len(r.history) - 1,
             "stopped": r.stopped,
@@ -193,12 +203,14 @@ def run_case(
     vertices: int | None = None,
     name: str = "design",
     log: Callable[[str], None] | None = print,
-    gradient_steps: int = 0,
-    **adjust_kw,
+    settings: AdjustSettings = DEFAULTS,
+    equalize: bool = True,
 ) -> CaseResult:
-    """Mesh, drape from the placement, edit, adjust (then ``gradient_steps``
-    Gauss-Newton steps, :mod:`couture.adjust.gradient`); every solve through
-    ``simulate_for(mesh)``."""
+    """Mesh, drape from the placement, edit, adjust by the fixed point (at
+    most ``settings.updates`` updates), then at most
+    ``settings.gradient_steps`` Gauss-Newton steps
+    (:mod:`couture.adjust.gradient`) while the solve budget
+    ``settings.max_solves`` lasts; every solve through ``simulate_for(mesh)``."""
     say = log or (lambda s: None)
     t0 = time.perf_counter()
     mesh = garment_mesh(design, vertices)
@@ -215,11 +227,21 @@ def run_case(
         _check_tightening(design, target, src.x, mesh)
     t_target = time.perf_counter() - t1
     say(f"[adjust] target: {edit} {amount:+.3f} m asked, {target.achieved:+.4f} m on the target")
-    result = adjust(mesh, target.x, simulate, x_source=src.x, log=log, **adjust_kw)
+    result = adjust(
+        mesh,
+        target.x,
+        simulate,
+        x_source=src.x,
+        log=log,
+        max_iters=max(0, min(settings.updates, settings.max_solves - 1)),
+        stop_stretch=settings.stop_stretch,
+        equalize=equalize,
+    )
     steps: list = []
     X_final = x_final = None
     t2 = time.perf_counter()
-    if gradient_steps > 0:
+    budget = settings.max_solves - len(result.history)
+    if settings.gradient_steps > 0 and budget > 0:
         from .gradient import gradient_polish
 
         X_final, x_final, steps = gradient_polish(
@@ -229,8 +251,11 @@ def run_case(
             result.x,
             target.x,
             simulate,
-            steps=gradient_steps,
-            equalize=adjust_kw.get("equalize", True),
+            steps=settings.gradient_steps,
+            stretch_weight=settings.stretch_weight,
+            lengths=settings.lengths,
+            max_solves=budget,
+            equalize=equalize,
             log=log,
         )
     t_grad = time.perf_counter() - t2

@@ -26,6 +26,7 @@ from schemas.design import Design
 from .fixed_point import Simulate
 from .pipeline import CaseResult, run_case
 from .project import Projection, project_to_design
+from .settings import DEFAULTS, AdjustSettings
 from .target import TORSO_SPAN, MaterialLoop, material_loop, section_girth
 
 CALIBRATE_TOLERANCE = 0.1
@@ -85,7 +86,7 @@ def run_adjustment(
     simulate_for: Callable[[GarmentMesh], Simulate],
     *,
     vertices: int,
-    max_iters: int = 2,
+    settings: AdjustSettings = DEFAULTS,
     calibrate_steps: int = 3,
     progress: Progress | None = None,
 ) -> AdjustOutcome:
@@ -111,8 +112,7 @@ def run_adjustment(
         vertices=vertices,
         name="design",
         log=log,
-        max_iters=max_iters,
-        stop_stretch=1.1,  # run the iterations asked for: a few, each one a solve
+        settings=settings,
     )
     if not case.source_solve["converged"]:
         raise ValueError(

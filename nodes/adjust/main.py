@@ -98,6 +98,7 @@ class AdjustAdapter:
 
     def run(self, req: AdjustMsg) -> None:
         from couture.adjust.service import run_adjustment
+        from couture.adjust.settings import DEFAULTS
         from couture.client import BusSolves, SolveFanout
 
         with self._lock:
@@ -129,7 +130,7 @@ class AdjustAdapter:
                 req.amount,
                 simulate_for,
                 vertices=vertices,
-                max_iters=req.max_iters,
+                settings=DEFAULTS.with_(updates=req.max_iters),
                 progress=progress,
             )
         except Exception as e:

@@ -1,0 +1,228 @@
+"""``couture bench adjust_sweep``: choose pattern adjustment's settings once, for every case.
+
+Every example design with every edit it allows (hem shorter and longer,
+waist looser and tighter), at one coarse size, solved in this process
+(``--solver``, default newton; the settings are the method's, the bench
+``couture bench adjust`` checks them on the solver nodes with both
+solvers). Per case: the source drape, the target, the fixed point run for
+``--updates`` updates without its stopping rules (each iterate kept), then
+from the iterates after 1 and 2 updates (``--starts``) the Gauss-Newton
+steps with each stretch weight of ``--weights`` (2 steps, lengths 1 and ½,
+every trial recorded). Every trial is a re-simulation, so any policy
+"flattening, k updates, then up to s steps with weight w" can be replayed
+from the record: the policy's result is exactly what the command would
+compute with those settings. The summary scores every policy over all
+cases: how many meet the goal (Hausdorff ≤ 1 % of height, mean stretch ≥
+0.98, ≤ 5 re-simulated patterns counting the flattening-only one), the
+worst Hausdorff distance and stretch, the mean number of solves.
+
+Writes ``adjust_sweep.json`` (every case, every trial) to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import sys
+import time
+from dataclasses import asdict
+
+import numpy as np
+
+from bench import add_out_arg, source_commit, write_results
+
+EDITS = {
+    "hem_shorter": ("hem", -0.10),
+    "hem_longer": ("hem", +0.05),
+    "waist_looser": ("waist", +0.04),
+    "waist_tighter": ("waist", -0.02),
+}
+DESIGNS = ["default_skirt", "dress", "dress_waist", "shirt", "shirt_set_in", "trousers", "skirt_edited"]
+GOAL = {"hausdorff_pct": 1.0, "stretch": 0.98, "solves": 5}
+
+
+def run_one(
+    design_name: str,
+    edit_name: str,
+    vertices: int,
+    solver: str,
+    updates: int,
+    starts: list[int],
+    weights: list[float],
+    max_seconds: float,
+) -> dict:
+    from couture.adjust.fixed_point import adjust, local_simulator
+    from couture.adjust.gradient import gradient_polish
+    from couture.adjust.pipeline import _check_tightening, garment_mesh, make_target
+    from couture.client import load_design
+    from couture.pattern.io import EXAMPLES
+
+    edit, amount = EDITS[edit_name]
+    design = load_design(EXAMPLES / f"{design_name}.json")
+    t0 = time.perf_counter()
+    mesh = garment_mesh(design, vertices)
+    sim = local_simulator(mesh, design, solver, max_seconds=max_seconds)
+    src = sim(mesh.X, mesh.x0)
+    rec: dict = {
+        "design": design_name,
+        "edit": edit_name,
+        "amount_m": amount,
+        "vertices": mesh.n_vertices,
+        "source": {"converged": bool(src.converged), "residual": float(src.residual), "seconds": src.wall_time_s},
+    }
+    try:
+        target = make_target(edit, amount, src.x, mesh.tris, mesh)
+        if edit == "waist" and amount < 0 and design.scene.body:
+            _check_tightening(design, target, src.x, mesh)
+    except ValueError as e:
+        rec["refused"] = str(e)
+        return rec
+    rec["target_achieved_m"] = target.achieved
+    fp = adjust(mesh, target.x, sim, x_source=src.x, max_iters=updates, stop_stretch=1.1, stagnation=-1.0, log=None)
+    rec["fixed_point"] = [asdict(h) for h in fp.history]
+    rec["polish"] = {}
+    for k in starts:
+        if k >= len(fp.patterns):
+            continue
+        for w in weights:
+            trials: list[dict] = []
+
+            def recording(X, xw, trials=trials):
+                s = sim(X, xw)
+                trials.append({"solver_s": s.wall_time_s, "converged": bool(s.converged)})
+                return s
+
+            try:
+                _, _, steps = gradient_polish(
+                    mesh,
+                    design,
+                    fp.patterns[k],
+                    fp_drape(fp, k),
+                    target.x,
+                    recording,
+                    steps=2,
+                    stretch_weight=w,
+                    log=None,
+                )
+                rec["polish"][f"{k}:{w:g}"] = [asdict(s) for s in steps]
+            except Exception as e:  # noqa: BLE001 - a failed polish is a result of the sweep
+                rec["polish"][f"{k}:{w:g}"] = {"error": f"{type(e).__name__}: {e}"}
+    rec["seconds"] = time.perf_counter() - t0
+    return rec
+
+
+def fp_drape(fp, k: int) -> np.ndarray:
+    """The drape of the fixed point's iterate k (the AdjustResult keeps the best one's only)."""
+    return fp.drapes[k]
+
+
+def score(cases: list[dict], updates: int, start: int | None, weight: float | None, steps: int) -> dict:
+    """Replay the policy 'flattening, ``start`` updates (best iterate so far), then up to ``steps``
+    gradient steps with ``weight``' over the recorded cases."""
+    met, worst_h, worst_s, solves = 0, 0.0, 1.0, []
+    rows = []
+    for c in cases:
+        if "refused" in c:
+            continue
+        hist = c["fixed_point"][: (start if start is not None else updates) + 1]
+        best = min(hist, key=lambda h: h["hausdorff_pct"])
+        h, s, n = best["hausdorff_pct"], best["stretch_mean"], len(hist)
+        if start is not None and steps > 0:
+            pol = c["polish"].get(f"{start}:{weight:g}")
+            if isinstance(pol, list):
+                # the polish starts from iterate `start`, not the best: it is what the command runs
+                h_cur, s_cur = hist[-1]["hausdorff_pct"], hist[-1]["stretch_mean"]
+                for g in pol[:steps]:
+                    n += g["solves"]
+                    if g["accepted"]:
+                        h_cur, s_cur = g["hausdorff_pct"], g["stretch_mean"]
+                    else:
+                        break
+                if h_cur < h:
+                    h, s = h_cur, s_cur
+        ok = h <= GOAL["hausdorff_pct"] and s >= GOAL["stretch"] and n <= GOAL["solves"]
+        met += ok
+        worst_h, worst_s = max(worst_h, h), min(worst_s, s)
+        solves.append(n)
+        rows.append({"case": f"{c['design']}/{c['edit']}", "hausdorff_pct": h, "stretch": s, "solves": n, "met": ok})
+    return {
+        "updates": start if start is not None else updates,
+        "weight": weight,
+        "steps": steps,
+        "met": met,
+        "cases": len(rows),
+        "worst_hausdorff_pct": worst_h,
+        "worst_stretch": worst_s,
+        "mean_solves": float(np.mean(solves)) if solves else 0.0,
+        "rows": rows,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="couture bench adjust_sweep", description=__doc__.split("\n\n")[0])
+    add_out_arg(ap)
+    ap.add_argument("--designs", nargs="+", default=DESIGNS)
+    ap.add_argument("--edits", nargs="+", default=list(EDITS), choices=list(EDITS))
+    ap.add_argument("--vertices", type=int, default=400)
+    ap.add_argument("--solver", default="newton")
+    ap.add_argument("--updates", type=int, default=4, help="fixed-point updates run per case")
+    ap.add_argument("--starts", nargs="+", type=int, default=[1, 2])
+    ap.add_argument("--weights", nargs="+", type=float, default=[3.0, 10.0, 30.0])
+    ap.add_argument("--max-seconds", type=float, default=60.0)
+    ap.add_argument("--rescore", default=None, help="score an earlier adjust_sweep.json instead of running")
+    a = ap.parse_args(argv)
+    if a.rescore:
+        cases = json.loads(open(a.rescore).read())["cases"]
+    else:
+        cases = []
+        for d, e in itertools.product(a.designs, a.edits):
+            print(f"== {d} {e}", flush=True)
+            c = run_one(d, e, a.vertices, a.solver, a.updates, a.starts, a.weights, a.max_seconds)
+            if "refused" in c:
+                print(f"   refused: {c['refused']}", flush=True)
+            else:
+                fp = c["fixed_point"]
+                print(
+                    "   fixed point H%/S: "
+                    + ", ".join(f"{h['hausdorff_pct']:.2f}/{h['stretch_mean']:.3f}" for h in fp)
+                    + f"; {c['seconds']:.0f} s",
+                    flush=True,
+                )
+                for key, pol in c["polish"].items():
+                    if isinstance(pol, list):
+                        print(
+                            f"   polish {key}: "
+                            + ", ".join(
+                                f"{g['hausdorff_pct']:.2f}/{g['stretch_mean']:.3f}"
+                                f"{'' if g['accepted'] else ' refused'} ({g['solves']})"
+                                for g in pol
+                            ),
+                            flush=True,
+                        )
+            cases.append(c)
+            write_results(
+                a.out,
+                "adjust_sweep",
+                {"commit": source_commit(), "settings": vars(a) | {"out": str(a.out)}, "cases": cases},
+            )
+    policies = [score(cases, u, None, None, 0) for u in range(1, a.updates + 1)]
+    for k, w, s in itertools.product(a.starts, a.weights, (1, 2)):
+        policies.append(score(cases, a.updates, k, w, s))
+    print(f"\n{'updates':>7} {'w':>5} {'steps':>5} {'met':>7} {'worst H%':>8} {'worst S':>7} {'solves':>6}")
+    for p in policies:
+        print(
+            f"{p['updates']:7d} {p['weight'] or 0:5g} {p['steps']:5d} {p['met']:3d}/{p['cases']:<3d} "
+            f"{p['worst_hausdorff_pct']:8.2f} {p['worst_stretch']:7.3f} {p['mean_solves']:6.1f}"
+        )
+    out = write_results(
+        a.out,
+        "adjust_sweep",
+        {"commit": source_commit(), "settings": vars(a) | {"out": str(a.out)}, "cases": cases, "policies": policies},
+    )
+    print(f"wrote {out}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
