@@ -187,6 +187,27 @@ def test_equalized_seams_match(skirt):
     assert stretch(edges2(Xe, mesh.tris), edges2(X, mesh.tris)).mean() > 0.98  # the rest barely moved
 
 
+def test_equalized_seams_keep_the_drafted_ease():
+    """The shirt's sleeve caps are drafted 43 mm longer than its armholes (the
+    ease a set-in sleeve is sewn with): equalizing against the source pattern
+    keeps each seam's ratio; equalizing without it would take the ease away."""
+    from couture.adjust.pipeline import garment_mesh
+    from couture.adjust.seams import seam_ease
+    from couture.client import load_design
+
+    mesh = garment_mesh(load_design("couture/pattern/examples/shirt.json"), 250)
+    ease = seam_ease(mesh, mesh.X)
+    assert max(ease.values()) > 1.1  # a cap 10 % or more longer than its armhole (drafted, not noise)
+    rng = np.random.default_rng(5)
+    X = mesh.X + rng.normal(scale=0.002, size=mesh.X.shape)
+    assert max_seam_mismatch(mesh, X, mesh.X) > 1e-3
+    Xe = equalize_seams(mesh, X, reference=mesh.X)
+    assert max_seam_mismatch(mesh, Xe, mesh.X) < 1e-9
+    for k, r in seam_ease(mesh, Xe).items():
+        assert r == pytest.approx(ease[k], rel=1e-9), k
+    assert max_seam_mismatch(mesh, equalize_seams(mesh, X)) < 1e-9  # without the reference: equal, ease gone
+
+
 @pytest.mark.timeout(120)
 def test_adjustment_over_two_solver_processes_matches_one_and_beats_flattening(skirt):
     """Every solve of the adjustment is a `solve` request to solver node

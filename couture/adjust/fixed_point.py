@@ -102,6 +102,39 @@ def undo_compression(t_target: np.ndarray, t_src3: np.ndarray, T_src: np.ndarray
     return C @ t_target
 
 
+DIVERGED = 1e-2
+"""a solve that stopped above this relative residual, or at a non-finite one, gave no drape (a
+time-capped solve a little above its tolerance still did)"""
+
+
+def diverged(s) -> bool:
+    """Did this solve (a :class:`Simulated` or an :class:`Iteration`) give no drape at all?"""
+    return not s.converged and not (np.isfinite(s.residual) and s.residual <= DIVERGED)
+
+
+COLLAPSED = 0.2
+"""a target triangle whose area is under this fraction of the source drape's was collapsed by the edit"""
+
+
+def uncollapsed(t_target: np.ndarray, t_src3: np.ndarray) -> np.ndarray:
+    """The target triangles the pattern is fitted to: where the edit collapsed
+    a triangle (a hem slid up a garment whose surface turns horizontal, as a
+    tenting shirt's does, can press one flat: area under :data:`COLLAPSED`
+    of the source drape's), the source drape's triangle instead. A collapsed
+    rest triangle would give the embedding nothing to hold (the shirt with
+    set-in sleeves, hem -10 cm: one triangle of area 5e-20 m² flipped in the
+    flattened pattern and every solve diverged). The stretch and the
+    distances are still measured against the real target."""
+    a_t = np.abs(np.linalg.det(t_target))
+    a_s = np.abs(np.linalg.det(t_src3))
+    bad = a_t < COLLAPSED * a_s
+    if not bad.any():
+        return t_target
+    out = t_target.copy()
+    out[bad] = t_src3[bad]
+    return out
+
+
 def fixed_point_update(T: np.ndarray, t_k: np.ndarray, t_target: np.ndarray) -> np.ndarray:
     """Bartle eqs. 6-7 per triangle: ``T ← T (t_k)⁻¹ t_target``. T: pattern
     triangles (m, 2, 2) as edge matrices; t_k, t_target: simulated and target
@@ -153,16 +186,19 @@ def adjust(
     n = mesh.n_vertices
     t_g = frames3(x_target, tris)
     say = log or (lambda s: None)
+    t_fit = t_g  # what the pattern is fitted to: the target, its collapsed triangles uncollapsed
 
     tu = time.perf_counter()
     X = flatten(x_target, tris)
     if x_source is not None:
-        t0_tris = undo_compression(t_g, frames3(x_source, tris), edges2(mesh.X, tris))
+        t_src3 = frames3(x_source, tris)
+        t_fit = uncollapsed(t_g, t_src3)
+        t0_tris = undo_compression(t_fit, t_src3, edges2(mesh.X, tris))
         if not np.allclose(t0_tris, t_g):
             X = Embedding(tris, t0_tris, n).run(X, iters=embed_iters)
     X = align_panels(X, mesh.X, tris, mesh.tri_panel)
     update_s = time.perf_counter() - tu
-    raw_mismatch = max_seam_mismatch(mesh, X)
+    raw_mismatch = max_seam_mismatch(mesh, X, mesh.X)
 
     history: list[Iteration] = []
     patterns: list[np.ndarray] = []
@@ -185,7 +221,7 @@ def adjust(
             converged=bool(sim.converged),
             simulate_s=float(sim.wall_time_s),
             update_s=update_s,
-            seam_mismatch_m=max_seam_mismatch(mesh, X),
+            seam_mismatch_m=max_seam_mismatch(mesh, X, mesh.X),
             seam_mismatch_raw_m=raw_mismatch,
             flipped_triangles=int((np.linalg.det(edges2(X, tris)) <= 0).sum()),
         )
@@ -197,10 +233,13 @@ def adjust(
             f"Hausdorff {1e3 * it.hausdorff_m:.1f} mm = {it.hausdorff_pct:.2f} % of height, "
             f"mean distance {1e3 * it.mean_distance_m:.1f} mm; {sim.solver} residual {sim.residual:.1e}"
             f"{'' if sim.converged else ' (NOT converged: ' + (sim.diagnosis or '?') + ')'}, "
-            f"solve {sim.wall_time_s:.1f} s; seams differ by {1e3 * it.seam_mismatch_m:.1f} mm"
+            f"solve {sim.wall_time_s:.1f} s; seams off their drafted ease by {1e3 * it.seam_mismatch_m:.1f} mm"
             + (f" ({1e3 * raw_mismatch:.1f} mm before equalizing)" if raw_mismatch != it.seam_mismatch_m else "")
             + (f"; {it.flipped_triangles} triangles FLIPPED" if it.flipped_triangles else "")
         )
+        if diverged(sim):
+            stopped = f"the solve of iteration {k} diverged (residual {sim.residual:.1e})"
+            break
         if it.stretch_mean >= stop_stretch:
             stopped = f"mean stretch {it.stretch_mean:.4f} >= {stop_stretch}"
             break
@@ -210,16 +249,18 @@ def adjust(
         if k == max_iters:
             break
         tu = time.perf_counter()
-        T_new = fixed_point_update(edges2(X, tris), t_k, t_g)
+        T_new = fixed_point_update(edges2(X, tris), t_k, t_fit)
         X = Embedding(tris, T_new, n).run(X, iters=embed_iters)
         X = align_panels(X, mesh.X, tris, mesh.tri_panel)
-        raw_mismatch = max_seam_mismatch(mesh, X)
+        raw_mismatch = max_seam_mismatch(mesh, X, mesh.X)
         if equalize:
-            X = align_panels(equalize_seams(mesh, X), mesh.X, tris, mesh.tri_panel)
+            X = align_panels(equalize_seams(mesh, X, reference=mesh.X), mesh.X, tris, mesh.tri_panel)
         update_s = time.perf_counter() - tu
     # the stretch drives the iteration; the distance to the target is what the
     # designer sees (Bartle §6), so the iterate returned is the closest one
-    best = int(np.argmin([h.hausdorff_m for h in history]))
+    # (an iterate whose solve diverged is no drape: chosen only if every one did)
+    ok = [h for h in history if not diverged(h)] or history
+    best = min(ok, key=lambda h: h.hausdorff_m).k
     return AdjustResult(
         X=patterns[best],
         x=drapes[best],

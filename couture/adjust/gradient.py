@@ -40,7 +40,7 @@ import numpy as np
 
 from couture.mesh import GarmentMesh
 
-from .fixed_point import MANNEQUIN_HEIGHT, Simulate, with_rest
+from .fixed_point import MANNEQUIN_HEIGHT, Simulate, diverged, with_rest
 from .geometry import frames3, hausdorff, stretch
 from .seams import equalize_seams
 
@@ -183,7 +183,7 @@ def gradient_polish(
             spent += 1
             Xa = X + a * dX
             if equalize:
-                Xa = equalize_seams(mesh, Xa)
+                Xa = equalize_seams(mesh, Xa, reference=mesh.X)
             sim = simulate(Xa, x_target)
             tried += 1
             H = hausdorff(x_target, sim.x, mesh.tris)
@@ -192,7 +192,7 @@ def gradient_polish(
                 f"[adjust] gradient step {k}, length {a:g}: Hausdorff {100 * H['hausdorff'] / height:.2f} %, "
                 f"stretch {S:.4f}"
             )
-            if H["hausdorff"] < best_h and S >= floor:
+            if H["hausdorff"] < best_h and S >= floor and not diverged(sim):
                 taken = (a, Xa, sim, H, S)
                 break
         dt = time.perf_counter() - t0

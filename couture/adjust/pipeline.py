@@ -60,7 +60,11 @@ def make_target(
     a waist loop goes round."""
     openings = None if mesh is None else opening_edges(mesh)
     if edit == "hem":
-        return hem_edit(x_src, tris, amount, openings=openings)
+        from .seams import vertex_panels
+
+        return hem_edit(
+            x_src, tris, amount, openings=openings, vertex_panel=None if mesh is None else vertex_panels(mesh)
+        )
     if edit == "waist":
         return waist_edit(x_src, tris, amount, openings=openings)
     raise ValueError(f"edit {edit!r}: choose one of {EDITS}")

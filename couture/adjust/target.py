@@ -65,6 +65,10 @@ def opening_edges(mesh) -> np.ndarray:
     return E[~(sewn[E[:, 0]] & sewn[E[:, 1]])]
 
 
+HEM_PANEL_REACH = 0.15
+"""a panel with an opening within this fraction of the garment's height above its lowest point holds the hem"""
+
+
 def _down_tangents(x: np.ndarray, tris: np.ndarray) -> np.ndarray:
     """Per vertex: the unit direction straight down the surface (steepest
     descent of the height in the tangent plane of the area-weighted normal)."""
@@ -118,22 +122,43 @@ def hem_edit(
     keep: float = 0.35,
     slide_steps: int = 12,
     openings: np.ndarray | None = None,
+    vertex_panel: np.ndarray | None = None,
 ) -> Target:
     """Shorten (dh < 0) or lengthen (dh > 0) a draped garment by ``|dh|``
     [m], see the module docstring. Lengthening continues the drape below its
     hem: ``openings`` (:func:`opening_edges`; default every boundary edge)
-    name the edges it may grow from, those below the fixed top part."""
+    name the edges it may grow from, those below the fixed top part.
+
+    With ``vertex_panel`` (each vertex's panel) only the *hem's* panels
+    change: those with an opening near the lowest point (a shirt's front and
+    back, whose hems are 2 cm apart, not its short sleeves, whose cuffs are
+    openings 22 cm higher: within :data:`HEM_PANEL_REACH` of the garment's
+    height above the lowest point), and the fixed
+    top part reaches down to the lowest point of every other panel, so a seam
+    between a hem panel and another one (an armhole) stays closed."""
     if not (np.isfinite(dh) and dh != 0):
         raise ValueError(f"hem edit: dh = {dh!r} m; give a non-zero length change (negative: shorter)")
     y = x_src[:, 1]
     y_top, y_hem = float(y.max()), float(y.min())
     length = y_top - y_hem
-    if -dh >= (1.0 - keep) * length:
+    y_fix = y_top - keep * length
+    moving = np.ones(len(y), bool)
+    if vertex_panel is not None:
+        if openings is None:
+            from .seams import boundary_edges
+
+            openings = boundary_edges(tris)
+        ends = np.unique(np.asarray(openings))
+        hem_panels = np.unique(vertex_panel[ends[y[ends] <= y_hem + HEM_PANEL_REACH * length]])
+        moving = np.isin(vertex_panel, hem_panels)
+        if (~moving).any():
+            y_fix = min(y_fix, float(y[~moving].min()))
+    if -dh >= y_fix - y_hem:
         raise ValueError(
             f"hem edit: shortening by {-dh:.3f} m leaves nothing below the fixed top part "
-            f"({keep:.0%} of the garment's {length:.3f} m height)"
+            f"(the garment's {y_fix - y_hem:.3f} m below y = {y_fix:.3f} m may change: its top "
+            f"{keep:.0%} and every panel without the hem stay)"
         )
-    y_fix = y_top - keep * length
     if dh > 0:
         from couture.pattern.mannequin import FLOOR_Y
 
@@ -147,13 +172,16 @@ def hem_edit(
 
             openings = boundary_edges(tris)
         openings = np.asarray(openings)
-        hem = openings[(y[openings] < y_fix).all(axis=1)]
+        hem = openings[(y[openings] < y_fix).all(axis=1) & moving[openings].all(axis=1)]
         if not len(hem):
             raise ValueError("hem edit: the garment has no open edge below its fixed top part to lengthen from")
-        surf = SurfaceDistance(*_hem_extension(x_src, tris, hem, dh))
+    own = moving[tris].all(axis=1)  # slide on the hem's panels only, never onto a sleeve
+    own_tris = tris[own] if own.any() else tris
+    if dh > 0:
+        surf = SurfaceDistance(*_hem_extension(x_src, own_tris, hem, dh))
     else:
-        surf = SurfaceDistance(x_src, tris)
-    below = y < y_fix
+        surf = SurfaceDistance(x_src, own_tris)
+    below = (y < y_fix) & moving
     y_new = y.copy()
     s = (y_fix - y[below]) / (y_fix - y_hem)  # 0 at y_fix, 1 at the lowest point
     y_new[below] = y_fix - s * (y_fix - y_hem + dh)
@@ -301,14 +329,33 @@ def waist_room(x_src: np.ndarray, tris: np.ndarray, y_loop: float, body, offset:
     only stretches the cloth over the body; its drape's girth stays."""
     loop = material_loop(x_src, tris, y_loop, min_span=TORSO_SPAN)
     P = loop.points(x_src)
-    phi, grad = body.phi_grad(P)
     r = P[:, [0, 2]] - np.array([0.0, TORSO_AXIS_Z])
-    u = r / np.maximum(np.linalg.norm(r, axis=1), 1e-9)[:, None]
-    # moving in by s lowers phi by s (grad . u) (at least a tenth of s: a flank)
-    rate = np.maximum(grad[:, 0] * u[:, 0] + grad[:, 2] * u[:, 1], 0.1)
-    s = np.maximum(phi - offset, 0.0) / rate
-    Q = r - s[:, None] * u
-    return _hull_perimeter(P[:, [0, 2]]) - _hull_perimeter(Q)
+    rn = np.linalg.norm(r, axis=1)
+    u = r / np.maximum(rn, 1e-9)[:, None]
+    # march each point in along its ray (2 mm steps, never past the axis) to
+    # where the body is first within `offset`: a loose garment's flank may be
+    # far from the skin along the ray though the torso's side is near
+    steps = np.linspace(0.0, 1.0, 1 + int(np.ceil(rn.max() / 0.002)))
+    s = rn[:, None] * steps[None, :]  # (k, m) distances moved in
+    Q3 = np.repeat(P[:, None, :], len(steps), axis=1)
+    Q3[..., 0] -= s * u[:, None, 0]
+    Q3[..., 2] -= s * u[:, None, 1]
+    phi, _ = body.phi_grad(Q3.reshape(-1, 3))
+    hit = phi.reshape(s.shape) <= offset
+    first = np.where(hit.any(axis=1), hit.argmax(axis=1), len(steps) - 1)
+    rows = np.arange(len(P))
+    hi = s[rows, first]  # within `offset` (or the axis)
+    lo = s[rows, np.maximum(first - 1, 0)]  # clear of it
+    for _ in range(40):  # bisect to where phi = offset along the ray
+        mid = 0.5 * (lo + hi)
+        M = P.copy()
+        M[:, 0] -= mid * u[:, 0]
+        M[:, 2] -= mid * u[:, 1]
+        inside = body.phi_grad(M)[0] <= offset
+        hi, lo = np.where(inside, mid, hi), np.where(inside, lo, mid)
+    s_in = np.where(hit.any(axis=1), lo, rn)
+    Q = r - s_in[:, None] * u
+    return max(0.0, _hull_perimeter(P[:, [0, 2]]) - _hull_perimeter(Q))
 
 
 @dataclass

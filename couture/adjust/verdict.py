@@ -94,7 +94,8 @@ def assess(case, goal: Goal = GOAL, body=None) -> Verdict:
     reasons: list[str] = []
     worst: dict = {}
 
-    unconverged = [h.k for h in case.result.history if not h.converged]
+    chosen = case.result.history[case.result.best]
+    unconverged = [] if chosen.converged or any(g.accepted for g in case.gradient) else [chosen.k]
     if not case.source_solve.get("converged", True):
         reasons.append(
             f"the source drape did not converge (residual {case.source_solve.get('residual', float('nan')):.1e}): "
