@@ -262,3 +262,33 @@ def test_fitted_design_achieves_the_asked_change(path, edit, amount, low, high):
         assert out.projection.changed["waist_girth"][1] > out.projection.changed["waist_girth"][0] + 0.02
     else:
         assert out.projection.changed["length"][1] > out.projection.changed["length"][0] + 0.02
+
+
+def test_hem_loop_is_every_low_opening_joined_across_its_seams():
+    """Two trouser legs' hems are both the hem; a short sleeve's cuff 90 cm
+    higher is not; a skirt's hem split over two panels is one loop where a
+    seam sews their corners, and a seam's run up the side joins nothing."""
+    from couture.adjust.target import hem_loop
+
+    def ring(first, k):
+        v = np.arange(first, first + k)
+        return np.column_stack([v, np.roll(v, -1)])
+
+    def run(first, k):
+        v = np.arange(first, first + k)
+        return np.column_stack([v[:-1], v[1:]])
+
+    y = np.zeros(40)
+    y[0:6] = -0.6  # left leg's hem
+    y[6:12] = -0.6  # right leg's
+    y[12:18] = 0.3  # a cuff
+    y[18] = 0.9  # the top
+    y[19:25] = -0.62  # a hem split over two panels: 19-21 and 22-24
+    y[30] = 0.0  # up a side seam, not on an opening
+    openings = np.concatenate([ring(0, 6), ring(6, 6), ring(12, 6), run(19, 3), run(22, 3)])
+    joined = hem_loop(openings, y, sewn=np.array([[21, 22], [24, 19], [19, 30]]))
+    assert sorted(joined) == [*range(0, 12), *range(19, 25)]
+    # without the seam's ends the two halves are separate loops, still both low
+    assert sorted(hem_loop(openings, y)) == [*range(0, 12), *range(19, 25)]
+    assert sorted(hem_loop(openings, y, reach=0.001)) == list(range(19, 25))  # the lowest loop alone
+    assert 30 not in hem_loop(openings, y, sewn=np.array([[19, 30], [30, 12]]))  # no joining up a side seam

@@ -62,9 +62,12 @@ def make_target(
     if edit == "hem":
         from .seams import vertex_panels
 
-        return hem_edit(
-            x_src, tris, amount, openings=openings, vertex_panel=None if mesh is None else vertex_panels(mesh)
+        if mesh is None:
+            return hem_edit(x_src, tris, amount, openings=openings)
+        sewn = np.concatenate([np.column_stack([mesh.seam_emitters, mesh.seam_edges[:, k]]) for k in (0, 1)]).astype(
+            np.int64
         )
+        return hem_edit(x_src, tris, amount, openings=openings, vertex_panel=vertex_panels(mesh), sewn=sewn)
     if edit == "waist":
         return waist_edit(x_src, tris, amount, openings=openings)
     raise ValueError(f"edit {edit!r}: choose one of {EDITS}")

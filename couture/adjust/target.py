@@ -65,8 +65,30 @@ def opening_edges(mesh) -> np.ndarray:
     return E[~(sewn[E[:, 0]] & sewn[E[:, 1]])]
 
 
-HEM_PANEL_REACH = 0.15
-"""a panel with an opening within this fraction of the garment's height above its lowest point holds the hem"""
+def hem_loop(openings: np.ndarray, y: np.ndarray, sewn: np.ndarray | None = None, reach: float = 0.15) -> np.ndarray:
+    """The vertices of the hem: the opening loops (``openings`` (k, 2) edges
+    joined where they share a vertex, and across a seam where ``sewn``
+    (m, 2) pairs two of their vertices: a seam's end at the hem sews one
+    panel's hem corner to the next one's) whose lowest point is within
+    ``reach`` of the garment's height above the lowest opening: a skirt's
+    one loop, however uneven; both trouser legs; a shirt's body hem, not its
+    short sleeves' cuffs (22 cm higher)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    ends = np.unique(openings)
+    if sewn is not None and len(sewn):
+        at_opening = np.isin(sewn, ends).all(axis=1)  # a seam's end at the opening, not its run up the seam
+        pairs = np.concatenate([openings, sewn[at_opening]])
+    else:
+        pairs = openings
+    n = len(y)
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(g, directed=False)
+    y_low = float(y[ends].min())
+    low_of = {lab: float(y[ends[label[ends] == lab]].min()) for lab in np.unique(label[ends])}
+    hems = [lab for lab, lo in low_of.items() if lo <= y_low + reach * float(y.max() - y_low)]
+    return ends[np.isin(label[ends], hems)]
 
 
 def _down_tangents(x: np.ndarray, tris: np.ndarray) -> np.ndarray:
@@ -123,6 +145,7 @@ def hem_edit(
     slide_steps: int = 12,
     openings: np.ndarray | None = None,
     vertex_panel: np.ndarray | None = None,
+    sewn: np.ndarray | None = None,
 ) -> Target:
     """Shorten (dh < 0) or lengthen (dh > 0) a draped garment by ``|dh|``
     [m], see the module docstring. Lengthening continues the drape below its
@@ -130,10 +153,10 @@ def hem_edit(
     name the edges it may grow from, those below the fixed top part.
 
     With ``vertex_panel`` (each vertex's panel) only the *hem's* panels
-    change: those with an opening near the lowest point (a shirt's front and
-    back, whose hems are 2 cm apart, not its short sleeves, whose cuffs are
-    openings 22 cm higher: within :data:`HEM_PANEL_REACH` of the garment's
-    height above the lowest point), and the fixed
+    change: those the hem loop runs through (:func:`hem_loop`: the opening
+    through the lowest point, followed across the seams ``sewn`` closes; a
+    shirt's front and back, not its short sleeves, whose cuffs are loops of
+    their own; every gore of a skirt, however uneven its hem), and the fixed
     top part reaches down to the lowest point of every other panel, so a seam
     between a hem panel and another one (an armhole) stays closed."""
     if not (np.isfinite(dh) and dh != 0):
@@ -148,8 +171,8 @@ def hem_edit(
             from .seams import boundary_edges
 
             openings = boundary_edges(tris)
-        ends = np.unique(np.asarray(openings))
-        hem_panels = np.unique(vertex_panel[ends[y[ends] <= y_hem + HEM_PANEL_REACH * length]])
+        loop = hem_loop(np.asarray(openings), y, sewn)
+        hem_panels = np.unique(vertex_panel[loop])
         moving = np.isin(vertex_panel, hem_panels)
         if (~moving).any():
             y_fix = min(y_fix, float(y[~moving].min()))
