@@ -164,8 +164,8 @@ def test_ui_adjust_tool_and_couture_adjust_give_the_same_adjusted_pattern(system
         assert done.state == "done", done.error
         ui_s = time.monotonic() - t_req
         # the verdict reached the folder, in the browser
-        wait_until(lambda: "**done, goal" in ui.adjust.progress.content, 30, page)
-        f3.get_by_text(re.compile(r"done, goal (met|NOT met)")).first.wait_for(timeout=30_000)
+        wait_until(lambda: "**done**, **goal" in ui.adjust.progress.content, 30, page)
+        f3.get_by_text(re.compile(r"^goal (met|NOT met)$")).first.wait_for(timeout=30_000)
         assert done.goal_met is not None and (done.goal_met or done.reasons)
         assert ("goal met" if done.goal_met else "goal NOT met") in ui.adjust.progress.content
         # the adjusted design was published and the UI adopted it

@@ -717,9 +717,9 @@ def test_adjust_folder_drag_release_sends_a_request_and_shows_progress(ui):
     assert "**done**" in panel.progress.content and not panel.undo.disabled
     # the verdict the node's done status carries: met or not, its reasons in the text
     ui.show_adjust_status("done", 1, "hem -0.080 m; goal met: Hausdorff 0.80 % of height", goal_met=True)
-    assert panel.progress.content.startswith("**done, goal met**: hem")
+    assert panel.progress.content.startswith("**done**, **goal met**: hem")
     ui.show_adjust_status("done", 1, "goal NOT met (...): Hausdorff 1.40 % > 1 %: at the hem", goal_met=False)
-    assert "**done, goal NOT met**" in panel.progress.content and "at the hem" in panel.progress.content
+    assert "**done**, **goal NOT met**" in panel.progress.content and "at the hem" in panel.progress.content
     n = len(designs)
     assert panel.undo_last() is before and designs[n:] == [before] and panel.undo.disabled
     ui.show_adjust_status("failed", 0, "", "no solver node is live in this session")

@@ -218,8 +218,8 @@ class AdjustPanel:
         if state == "failed":
             self.show_error(error or text)
             return
-        verdict = "" if goal_met is None else (", goal met" if goal_met else ", goal NOT met")
-        head = {"running": "adjusting", "iteration": f"iteration {iteration}", "done": f"**done{verdict}**"}.get(
+        verdict = "" if goal_met is None else (", **goal met**" if goal_met else ", **goal NOT met**")
+        head = {"running": "adjusting", "iteration": f"iteration {iteration}", "done": f"**done**{verdict}"}.get(
             state, state
         )
         self.progress.content = f"{head}: {text}"
