@@ -366,7 +366,9 @@ def _parser() -> argparse.ArgumentParser:
         "the target. Every solve is a `solve` request over the bus: without --connect the solver nodes\n"
         "(--solver, repeatable; two names fan the solves out over two processes) are started here.\n"
         "Writes pattern.dxf/.svg/.pdf (adjusted), flattened.svg, panels.json, drape_*.obj, adjust.json\n"
-        "and adjust.png into --out.",
+        "and adjust.png into --out, and design.json: the design the UI's adjust tool publishes for the same\n"
+        "edit (the sloper's options fitted to the adjusted pattern, corrected on its own drapes; --no-fit: not).\n"
+        "The settings are couture.adjust.settings.DEFAULTS, the adjust node's.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     ad.add_argument("pattern", help="pattern JSON (couture/design/v1)")
@@ -385,7 +387,10 @@ def _parser() -> argparse.ArgumentParser:
         "which live solver-<name> nodes to use (default every live one)",
     )
     ad.add_argument(
-        "--vertices", type=int, default=None, help="coarse mesh size (default the design's resolution.coarse_vertices)"
+        "--vertices",
+        type=int,
+        default=None,
+        help="coarse mesh size (default the design's resolution.coarse_vertices; the UI's adjust node: 400)",
     )
     from couture.adjust.settings import DEFAULTS as ADJ
     from couture.adjust.settings import GOAL as ADJ_GOAL
@@ -403,6 +408,11 @@ def _parser() -> argparse.ArgumentParser:
         help=f"stop the updates once the mean stretch (eq. 8) reaches this (default {ADJ.stop_stretch})",
     )
     ad.add_argument("--no-equalize", action="store_true", help="leave the seam lengths as the embedding makes them")
+    ad.add_argument(
+        "--no-fit",
+        action="store_true",
+        help="do not fit the design's options to the adjusted pattern (no design.json, no drapes of the fit)",
+    )
     ad.add_argument(
         "--gradient-steps",
         type=int,
@@ -431,7 +441,8 @@ def _parser() -> argparse.ArgumentParser:
         f"Goal: Hausdorff <= {ADJ_GOAL.hausdorff_pct:g} % of height, mean stretch >= {ADJ_GOAL.stretch:g}, "
         f"<= {ADJ_GOAL.solves} re-simulated patterns, <= {ADJ_GOAL.seconds:g} s.\n"
         "exit status:\n  0  goal met; every output written\n  1  error (a refused edit says why)\n"
-        "  2  bad command line\n  3  goal not met: every output written, the reasons measured and printed"
+        "  2  bad command line\n  3  goal not met: every output written, the reasons measured and printed\n"
+        "(a design no sloper option can express writes no design.json and says why; the status is the goal's)"
     )
     add_bus_args(ad)
 
@@ -1252,7 +1263,8 @@ def adjust(args: argparse.Namespace) -> int:
     from couture.adjust.settings import DEFAULTS
     from couture.adjust.verdict import assess, body_for
     from couture.bus import bus_config_from_args
-    from couture.client import adjust_on_bus, load_design, solver_session
+    from couture.client import adjust_on_bus, fit_on_bus, load_design, solver_session
+    from couture.pattern.io import save_design
 
     design = load_design(args.pattern)
     edit, amount = ("hem", args.hem) if args.hem is not None else ("waist", args.waist)
@@ -1261,21 +1273,28 @@ def adjust(args: argparse.Namespace) -> int:
             f"--{edit} {amount!r}: "
             + ("a nonzero length change [m] (negative shortens)" if edit == "hem" else "a nonzero girth change [m]")
         )
+    vertices = args.vertices or design.resolution.coarse_vertices
     bus = bus_config_from_args(args)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     solvers = args.solver or ([] if bus.connect else ["newton"])
     if not args.verbose:
         logging.getLogger().setLevel(logging.WARNING)  # ezdxf and the supervisor log at INFO
+
+    def say(text: str) -> None:
+        print(text, file=sys.stderr, flush=True)
+
+    fitted = None
+    fit: dict = {}  # adjust.json's design_fit: the fitted design's numbers, or why there is none
     with solver_session(solvers, bus if bus.connect else None, log_file=str(out / "nodes.log")) as (client, names):
-        print(f"[adjust] solves go to {', '.join(names)}", file=sys.stderr, flush=True)
+        say(f"[adjust] solves go to {', '.join(names)}")
         case, counts = adjust_on_bus(
             client,
             names,
             design,
             edit,
             amount,
-            vertices=args.vertices,
+            vertices=vertices,
             name=Path(args.pattern).stem,
             settings=DEFAULTS.with_(
                 updates=args.iters,
@@ -1285,14 +1304,37 @@ def adjust(args: argparse.Namespace) -> int:
                 max_solves=args.max_solves,
             ),
             equalize=not args.no_equalize,
-            log=lambda s: print(s, file=sys.stderr, flush=True),
+            log=say,
         )
-    verdict = assess(case, body=body_for(design))
-    case.verdict = verdict
-    write_outputs(case, out)
+        verdict = assess(case, body=body_for(design))
+        case.verdict = verdict
+        if not args.no_fit:
+            # what the adjust node publishes for this edit (couture.adjust.service.run_adjustment)
+            try:
+                fitted = fit_on_bus(
+                    client, names, design, case, vertices=vertices, progress=lambda _s, _k, t: say(f"[adjust] {t}")
+                )
+            except ValueError as e:
+                fit = {"error": str(e)}
+                say(f"[adjust] no design.json: {e}")
+    if fitted is not None:
+        save_design(fitted.design, out / "design.json")
+        p = fitted.projection
+        fit = {
+            "design": "design.json",
+            "options": {k: [a, b] for k, (a, b) in p.changed.items()},
+            "asked_m": amount,
+            "achieved_m": fitted.achieved,
+            "fit_rms_m": p.fit_rms_m,
+            "fit_max_m": p.fit_max_m,
+            "drapes": len(fitted.calibration),
+            "calibration": fitted.calibration,
+            "seconds": fitted.seconds,
+        }
+    write_outputs(case, out, extra={"design_fit": fit} if fit else None)
     plot_case(case, out / "adjust.png")
     s = case.summary()
-    print(
+    say(
         f"[adjust] {s['design']}: flattening only: Hausdorff {s['flattening_only']['hausdorff_pct']:.2f} % of height, "
         f"stretch {s['flattening_only']['stretch']:.4f}; adjusted (iteration {s['adjusted']['iteration']}): "
         f"Hausdorff {s['adjusted']['hausdorff_pct']:.2f} %, stretch {s['adjusted']['stretch']:.4f}; "
@@ -1303,14 +1345,20 @@ def adjust(args: argparse.Namespace) -> int:
             else ""
         )
         + f"edit to pattern {s['timings_s']['edit_to_pattern']:.1f} s; solves per node {counts}; "
-        f"seams differ by at most {s['seams']['max_mismatch_mm']['adjusted']:.2f} mm",
-        file=sys.stderr,
+        f"seams differ by at most {s['seams']['max_mismatch_mm']['adjusted']:.2f} mm"
     )
-    print(
-        f"[adjust] wrote {out}/pattern.dxf, .svg, .pdf, panels.json, drape_*.obj, adjust.json, adjust.png",
-        file=sys.stderr,
+    if fitted is not None:
+        opts = ", ".join(f"{k} {a:.3f} -> {b:.3f}" for k, (a, b) in sorted(fitted.projection.changed.items()))
+        say(
+            f"[adjust] design.json (what the UI's adjust tool publishes): {opts}; outline fit "
+            f"{1e3 * fitted.projection.fit_rms_m:.1f} mm RMS; its drape: {edit} {100 * fitted.achieved:+.1f} cm "
+            f"({100 * amount:+.1f} cm asked)"
+        )
+    say(
+        f"[adjust] wrote {out}/pattern.dxf, .svg, .pdf, panels.json, drape_*.obj, adjust.json, adjust.png"
+        + (", design.json" if fitted is not None else "")
     )
-    print(f"[adjust] {verdict.text()}", file=sys.stderr)
+    say(f"[adjust] {verdict.text()}")
     return 0 if verdict.met else 3
 
 

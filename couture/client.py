@@ -735,6 +735,10 @@ class SolveFanout:
         )
 
 
+CONNECT_WAIT_S = 10.0
+"""[s] how long :func:`solver_session` on a running session waits for its solver nodes to show"""
+
+
 @contextlib.contextmanager
 def solver_session(
     solvers: list[str], bus: BusConfig | None = None, *, log_file: str | None = None, timeout: float = 90.0
@@ -749,11 +753,23 @@ def solver_session(
 
     if bus is not None and bus.connect:
         with Client(bus=bus) as c:
-            live = sorted(n for n in c.live_nodes(timeout=2.0) if n.startswith("solver"))
-            names = [s if s.startswith("solver") else f"solver-{s}" for s in solvers] if solvers else live
-            missing = [n for n in names if n not in live]
+            # a session just opened sees the nodes' liveliness tokens only once it has
+            # connected: one query at once may find none (measured: 'live: []' on a
+            # loaded machine with the nodes up), so wait up to CONNECT_WAIT_S for them
+            wanted = [s if s.startswith("solver") else f"solver-{s}" for s in solvers]
+            deadline = time.monotonic() + CONNECT_WAIT_S
+            while True:
+                live = sorted(n for n in c.live_nodes(timeout=1.0) if n.startswith("solver"))
+                names = wanted or live
+                missing = [n for n in names if n not in live]
+                if (names and not missing) or time.monotonic() >= deadline:
+                    break
+                time.sleep(0.1)
             if missing or not names:
-                raise RuntimeError(f"solver nodes {missing or 'any'} not live on session {bus.session} (live: {live})")
+                raise RuntimeError(
+                    f"solver nodes {missing or 'any'} not live on session {bus.session} after {CONNECT_WAIT_S:g} s "
+                    f"(live: {live})"
+                )
             yield c, names
         return
     if not solvers:
@@ -790,3 +806,26 @@ def adjust_on_bus(
 
     case = run_case(design, edit, amount, simulate_for, **kw)
     return case, (fans[-1].counts if fans else {})
+
+
+def fit_on_bus(
+    client: Client,
+    names: list[str],
+    design: Design,
+    case: Any,
+    *,
+    vertices: int,
+    max_seconds: float = 60.0,
+    progress: Callable[[str, int, str], None] | None = None,
+) -> Any:
+    """The design the adjust node would publish for ``case`` (an
+    :func:`adjust_on_bus` result of ``design`` at ``vertices``):
+    :func:`couture.adjust.service.fit_design`, its drapes on the solver nodes
+    ``names``. Returns its ``AdjustOutcome``; raises ValueError when no sloper
+    option can express the adjusted pattern."""
+    from couture.adjust.service import fit_design
+
+    def simulate_for(mesh: GarmentMesh) -> SolveFanout:
+        return SolveFanout(client, mesh, design, names, max_seconds=max_seconds)
+
+    return fit_design(design, case, simulate_for, vertices=vertices, progress=progress)

@@ -541,8 +541,10 @@ class AdjustMsg(Message, kw_only=True):
     """that design's identity (its pattern's ``design_id``)"""
     vertices: int = 0
     """coarse mesh size [vertices] of the adjustment's solves; 0: the node's default"""
-    max_iters: int = 2
-    """fixed-point updates after the flattening (0..10)"""
+    max_iters: int | None = None
+    """fixed-point updates after the flattening (0..10); None: the adjust
+    node's settings (``couture.adjust.settings.DEFAULTS.updates``, what
+    ``couture adjust`` uses too)"""
 
     def check(self) -> None:
         import math
@@ -555,8 +557,11 @@ class AdjustMsg(Message, kw_only=True):
             raise SchemaError(
                 f"{self.TYPE}: field `$.vertices`: {self.vertices} outside 50..{ADJUST_MAX_VERTICES} (0: default)"
             )
-        if not 0 <= self.max_iters <= ADJUST_MAX_ITERS:
-            raise SchemaError(f"{self.TYPE}: field `$.max_iters`: {self.max_iters} outside 0..{ADJUST_MAX_ITERS}")
+        if self.max_iters is not None and not 0 <= self.max_iters <= ADJUST_MAX_ITERS:
+            raise SchemaError(
+                f"{self.TYPE}: field `$.max_iters`: {self.max_iters} outside 0..{ADJUST_MAX_ITERS} "
+                "(or null: the adjust node's settings)"
+            )
 
 
 class AdjustStatusMsg(Message, kw_only=True):
@@ -580,7 +585,8 @@ class AdjustStatusMsg(Message, kw_only=True):
     error: str = ""
     """why it failed ('' unless state is 'failed')"""
     hausdorff_pct: float = float("nan")
-    """[% of mannequin height] best re-simulated drape to the target so far"""
+    """done: [% of mannequin height] Hausdorff distance from the adjusted pattern's drape (the
+    pattern the design was fitted to, after any gradient steps) to the target"""
     design_id: str = ""
     """done: the published adjusted design's identity"""
     options: dict[str, float] = {}
@@ -591,6 +597,17 @@ class AdjustStatusMsg(Message, kw_only=True):
     """done: [m] the change measured on the published design's own coarse
     drape, in the request's terms (hem: length change, waist: girth change);
     a design says only what its sloper options can, so it may fall short of ``amount``"""
+    stretch: float = float("nan")
+    """done: mean stretch (Bartle's eq. 8, ``couture.adjust.geometry.stretch``) of the adjusted
+    pattern's drape against the target"""
+    solves: int = 0
+    """done: re-simulated patterns the adjustment took (flattening, updates, gradient trials)"""
+    goal_met: bool | None = None
+    """done: whether the adjusted pattern met the goal (``couture.adjust.settings.GOAL``:
+    Hausdorff, stretch, solves, seconds); None: not judged (recordings made before it)"""
+    reasons: list[str] = []
+    """done: one sentence per goal figure missed, with what was measured and where
+    (``couture.adjust.verdict``); empty when the goal was met"""
 
 
 MESSAGE_TYPES: tuple[type[Message], ...] = tuple(cls for cls in Message.__subclasses__() if cls.__module__ == __name__)

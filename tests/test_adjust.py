@@ -244,7 +244,8 @@ def test_adjustment_over_two_solver_processes_matches_one_and_beats_flattening(s
 def test_couture_adjust_writes_a_cuttable_pattern(tmp_path):
     """The command end to end on a small skirt: its solver node started, the
     adjusted pattern written as DXF that reads back with the panels' outlines,
-    seams of equal length, and the numbers in adjust.json."""
+    seams of equal length, the numbers in adjust.json, and design.json (the
+    sloper's options fitted, what the adjust node publishes)."""
     import json
 
     from couture.adjust.pipeline import garment_mesh
@@ -282,6 +283,12 @@ def test_couture_adjust_writes_a_cuttable_pattern(tmp_path):
     assert dxf_area == pytest.approx(area, rel=1e-4)
     assert max_seam_mismatch(mesh, z["X_adjusted"]) < 1e-6
     assert (tmp_path / "adjust.png").stat().st_size > 10_000
+    # design.json: the design the UI's adjust node would publish, its options fitted to the adjusted pattern
+    fitted = load_design(tmp_path / "design.json")
+    fit = s["design_fit"]
+    assert fitted.sloper.params["length"] == pytest.approx(fit["options"]["length"][1])
+    assert fitted.sloper.params["length"] < fit["options"]["length"][0] - 0.05  # shorter, in its own option
+    assert -0.2 < fit["achieved_m"] < -0.08 and fit["drapes"] >= 1
 
 
 def test_gradient_steps_jacobian_matches_finite_differences():

@@ -15,6 +15,7 @@ from schemas import (
     MESSAGE_TYPES,
     REGISTRY,
     AdjustMsg,
+    AdjustStatusMsg,
     Array,
     Design,
     DrapeMsg,
@@ -129,7 +130,7 @@ def _adjust(draw, h):
         amount=draw(st.floats(0.001, 0.5)),
         design=Design(sloper=Sloper(kind="skirt", params={"length": draw(finite)})),
         vertices=draw(st.sampled_from([0, 50, 400])),
-        max_iters=draw(st.integers(0, 10)),
+        max_iters=draw(st.one_of(st.none(), st.integers(0, 10))),
     )
 
 
@@ -427,7 +428,12 @@ def test_tryon_message_names_a_missing_panel_and_a_bad_angle():
 
 def test_adjust_request_names_a_bad_amount_and_bad_sizes():
     ok = decode(encode(AdjustMsg(edit="waist", amount=0.04, vertices=400)), AdjustMsg)
-    assert ok.edit == "waist" and ok.amount == 0.04 and ok.max_iters == 2
+    # max_iters unnamed: the adjust node's settings (couture.adjust.settings.DEFAULTS), as `couture adjust`'s
+    assert ok.edit == "waist" and ok.amount == 0.04 and ok.max_iters is None
+    assert decode(encode(AdjustMsg(edit="waist", amount=0.04, max_iters=3)), AdjustMsg).max_iters == 3
+    # a request recorded before (max_iters always sent, 2 by default) still decodes, its value kept
+    old = {"schema": "couture/adjust/v1", "version": 1, "edit": "hem", "amount": -0.1, "max_iters": 2}
+    assert decode(msgspec.msgpack.encode(old), AdjustMsg).max_iters == 2
     assert decode(encode(AdjustMsg(edit="hem", amount=0.1)), AdjustMsg).amount == 0.1  # lengthening
     for kw, words in (
         ({"edit": "waist", "amount": float("nan")}, "not a finite nonzero"),
@@ -435,6 +441,7 @@ def test_adjust_request_names_a_bad_amount_and_bad_sizes():
         ({"edit": "hem", "amount": -3.0}, "beyond"),
         ({"edit": "hem", "amount": -0.1, "vertices": 10}, "$.vertices"),
         ({"edit": "hem", "amount": -0.1, "max_iters": 50}, "$.max_iters"),
+        ({"edit": "hem", "amount": -0.1, "max_iters": -1}, "$.max_iters"),
     ):
         with pytest.raises(SchemaError, match="couture/adjust/v1") as e:
             encode(AdjustMsg(**kw))
@@ -442,6 +449,18 @@ def test_adjust_request_names_a_bad_amount_and_bad_sizes():
     data = msgspec.msgpack.encode({"schema": "couture/adjust/v1", "version": 1, "edit": "sleeve", "amount": 0.1})
     with pytest.raises(SchemaError, match=r"\$\.edit"):
         decode(data, AdjustMsg)
+
+
+def test_adjust_status_recorded_before_the_verdict_decodes_as_not_judged():
+    """A done status without the verdict's fields (recordings before them) decodes: goal_met None, no reasons."""
+    import math
+
+    old = {"schema": "couture/adjust_status/v1", "version": 1, "state": "done", "text": "hem -0.100 m", "iteration": 2}
+    was = decode(msgspec.msgpack.encode(old), AdjustStatusMsg)
+    assert was.goal_met is None and was.reasons == [] and was.solves == 0 and math.isnan(was.stretch)
+    new = AdjustStatusMsg(state="done", goal_met=False, reasons=["Hausdorff 1.20 % > 1 %: at the hem"], solves=4)
+    back = decode(encode(new), AdjustStatusMsg)
+    assert back.goal_met is False and back.reasons == new.reasons and back.solves == 4
 
 
 def test_psi_message_names_its_gesture_and_matches_its_shape():

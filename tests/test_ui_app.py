@@ -715,6 +715,11 @@ def test_adjust_folder_drag_release_sends_a_request_and_shows_progress(ui):
     assert "iteration 1" in panel.progress.content
     ui.show_adjust_status("done", 1, "hem -0.080 m: design options: length 0.600 -> 0.520")
     assert "**done**" in panel.progress.content and not panel.undo.disabled
+    # the verdict the node's done status carries: met or not, its reasons in the text
+    ui.show_adjust_status("done", 1, "hem -0.080 m; goal met: Hausdorff 0.80 % of height", goal_met=True)
+    assert panel.progress.content.startswith("**done**, **goal met**: hem")
+    ui.show_adjust_status("done", 1, "goal NOT met (...): Hausdorff 1.40 % > 1 %: at the hem", goal_met=False)
+    assert "**done**, **goal NOT met**" in panel.progress.content and "at the hem" in panel.progress.content
     n = len(designs)
     assert panel.undo_last() is before and designs[n:] == [before] and panel.undo.disabled
     ui.show_adjust_status("failed", 0, "", "no solver node is live in this session")
@@ -726,5 +731,6 @@ def test_adjust_folder_drag_release_sends_a_request_and_shows_progress(ui):
     # the message the adapter makes of it
     m = decode(encode(adjust_msg("hem", -0.08, ui.design, "d1", 3)), AdjustMsg)
     assert m.edit == "hem" and m.amount == -0.08 and m.generation == 3 and m.design_id == "d1"
+    assert m.max_iters is None  # the adjust node's settings, those of `couture adjust`
     assert decode(encode(adjust_msg("hem", 0.08, ui.design, "d1", 3)), AdjustMsg).amount == 0.08
     ui.on_design_changed = None

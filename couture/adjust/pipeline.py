@@ -295,10 +295,11 @@ def run_case(
     )
 
 
-def write_outputs(case: CaseResult, out: str | Path) -> list[Path]:
+def write_outputs(case: CaseResult, out: str | Path, extra: dict | None = None) -> list[Path]:
     """The adjusted pattern as DXF (AAMA), SVG and PDF (true scale), the
     flattening-only one as ``flattened.svg``, the drapes as OBJ (source,
-    target, adjusted), the pattern's panels as JSON and ``adjust.json``."""
+    target, adjusted), the pattern's panels as JSON and ``adjust.json`` (the
+    case's summary, with ``extra``'s keys added)."""
     from couture.pattern.io import export_dxf, export_pdf, export_svg
 
     out = Path(out)
@@ -343,7 +344,7 @@ def write_outputs(case: CaseResult, out: str | Path) -> list[Path]:
     paths.append(out / "adjust_mesh.npz")
     from couture.jsonout import dumps
 
-    (out / "adjust.json").write_text(dumps(case.summary(), indent=2))
+    (out / "adjust.json").write_text(dumps({**case.summary(), **(extra or {})}, indent=2))
     paths.append(out / "adjust.json")
     return paths
 

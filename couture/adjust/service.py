@@ -3,10 +3,15 @@ runs for each ``couture/adjust/v1``.
 
 Drape the design on a coarse mesh, edit the drape (hem or waist loop) into a
 target, adjust the pattern (:func:`couture.adjust.pipeline.run_case`, every
-solve through ``simulate_for``), then fit the design's sloper options to the
-adjusted pattern (:func:`couture.adjust.project.project_to_design`): the
-result is a design the remesher and the solvers re-drape like any other.
-Progress goes to ``progress(state, iteration, text)`` as it happens.
+solve through ``simulate_for``, with the settings ``couture adjust`` uses:
+:data:`couture.adjust.settings.DEFAULTS`), judge it against the goal
+(:func:`couture.adjust.verdict.assess`), then fit the design's sloper options
+to the adjusted pattern (:func:`fit_design`,
+:func:`couture.adjust.project.project_to_design`): the result is a design
+the remesher and the solvers re-drape like any other. ``couture adjust``
+runs the same steps (``run_case``, ``assess``, ``fit_design``) and writes
+that design as ``design.json``. Progress goes to ``progress(state,
+iteration, text)`` as it happens.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from .pipeline import CaseResult, run_case
 from .project import Projection, project_to_design
 from .settings import DEFAULTS, AdjustSettings
 from .target import TORSO_SPAN, MaterialLoop, material_loop, section_girth
+from .verdict import Verdict, assess, body_for
 
 CALIBRATE_TOLERANCE = 0.1
 """a waist edit's design is refitted while its drape misses the ask by more than this fraction"""
@@ -61,10 +67,17 @@ class AdjustOutcome:
     change of the loop's cloth [m] fitted; hem: the scale of the fitted option change"""
 
     @property
+    def verdict(self) -> Verdict:
+        """The adjusted pattern judged against the goal (the case's, assessed once)."""
+        if self.case.verdict is None:
+            self.case.verdict = assess(self.case)
+        return self.case.verdict
+
+    @property
     def hausdorff_pct(self) -> float:
-        """[% of mannequin height] the adjusted pattern's drape to the target"""
-        r = self.case.result
-        return r.history[r.best].hausdorff_pct
+        """[% of mannequin height] the adjusted pattern's drape (the pattern the
+        design was fitted to: after any gradient steps) to the target"""
+        return self.verdict.hausdorff_pct
 
     def text(self) -> str:
         p = self.projection
@@ -75,7 +88,7 @@ class AdjustOutcome:
             f"height from the target (flattening only {r.history[0].hausdorff_pct:.2f} %); design options: {opts}; "
             f"outline fit {1e3 * p.fit_rms_m:.1f} mm RMS ({1e3 * p.fit_max_m:.1f} mm max); "
             f"the new design's drape: {self.case.edit} {100 * self.achieved:+.1f} cm "
-            f"({100 * self.case.amount:+.1f} cm asked); {self.seconds:.1f} s"
+            f"({100 * self.case.amount:+.1f} cm asked); {self.seconds:.1f} s; {self.verdict.text()}"
         )
 
 
@@ -119,6 +132,8 @@ def run_adjustment(
             f"the design's drape did not converge on the {vertices}-vertex mesh "
             f"(residual {case.source_solve['residual']:.1e}): nothing to edit"
         )
+    case.verdict = assess(case, body=body_for(design))
+    say("running", len(case.result.history) - 1, case.verdict.text())
     return fit_design(
         design, case, simulate_for, vertices=vertices, calibrate_steps=calibrate_steps, progress=say, t0=t0
     )

@@ -14,7 +14,8 @@ The amount follows the handle (and can be typed). On release, when "adjust
 on release" is on, or with the "Adjust pattern" button, ``on_request(edit,
 amount)`` hands the request to the bus adapter, which sends it to the
 adjust node; its progress (:meth:`AdjustPanel.show_status`) is shown under
-the buttons. The adjusted design comes back as the new current design (as
+the buttons, and at the end the verdict: whether the adjusted pattern met the
+goal (Hausdorff, stretch, re-simulated patterns, seconds) and, if not, why. The adjusted design comes back as the new current design (as
 any other publisher's design does); "Undo adjustment" puts back the design
 before it (``on_undo(design)``, a new design like any edit).
 """
@@ -210,12 +211,17 @@ class AdjustPanel:
             return None
         return loop, amount
 
-    def show_status(self, state: str, iteration: int, text: str, error: str = "") -> None:
-        """Progress of the request sent (the adjust node's ``adjust/status``)."""
+    def show_status(self, state: str, iteration: int, text: str, error: str = "", goal_met: bool | None = None) -> None:
+        """Progress of the request sent (the adjust node's ``adjust/status``);
+        ``goal_met``: done's verdict against the goal (None: not judged), its
+        figures and reasons at the end of ``text``."""
         if state == "failed":
             self.show_error(error or text)
             return
-        head = {"running": "adjusting", "iteration": f"iteration {iteration}", "done": "**done**"}.get(state, state)
+        verdict = "" if goal_met is None else (", **goal met**" if goal_met else ", **goal NOT met**")
+        head = {"running": "adjusting", "iteration": f"iteration {iteration}", "done": f"**done**{verdict}"}.get(
+            state, state
+        )
         self.progress.content = f"{head}: {text}"
         if state == "done":
             self.amount_cm.value = 0.0  # type: ignore[misc]  # viser has the setter

@@ -354,9 +354,11 @@ class CoutureUI:
         and the outlines move; the design changes when its release commits."""
         self.view2d.preview_element(element, np.asarray(d, np.float64).reshape(2))
 
-    def show_adjust_status(self, state: str, iteration: int, text: str, error: str = "") -> None:
-        """Progress of this UI's adjust request (running, iteration, done, failed)."""
-        self.adjust.show_status(state, iteration, text, error)
+    def show_adjust_status(
+        self, state: str, iteration: int, text: str, error: str = "", goal_met: bool | None = None
+    ) -> None:
+        """Progress of this UI's adjust request (running, iteration, done with its verdict, failed)."""
+        self.adjust.show_status(state, iteration, text, error, goal_met)
 
     def _request_adjust(self, loop: str, amount: float) -> None:
         if self.on_adjust is None:

@@ -9,9 +9,13 @@ waits, and a newer one replaces it (the replaced one is answered ``failed``,
 every live ``solver-*`` node or the ones configured), so the other nodes keep
 serving edits and drapes between them. Progress goes out on
 ``adjust/status`` (:class:`schemas.AdjustStatusMsg`: running, one message per
-re-simulated pattern, then done or failed); on success the adjusted design
+re-simulated pattern, then done or failed; done carries the verdict against
+the goal: met or not, and why); on success the adjusted design
 is published on ``pattern`` (source ``adjust``), so the remesher meshes it,
-the solvers drape it and every ui shows it. On failure nothing is published:
+the solvers drape it and every ui shows it. The settings are
+``couture.adjust.settings.DEFAULTS``, those of ``couture adjust``, unless
+the request names its ``max_iters``; for the same design, edit and vertices
+the node and the command compute the same adjusted pattern and design. On failure nothing is published:
 the current design stays, and the status says why. A malformed request is
 dropped by the bus with the reason in this node's status (``last_error``).
 """
@@ -156,6 +160,10 @@ class AdjustAdapter:
             len(out.case.result.history) - 1,
             out.text(),
             hausdorff_pct=out.hausdorff_pct,
+            stretch=out.verdict.stretch,
+            solves=out.verdict.solves,
+            goal_met=out.verdict.met,
+            reasons=list(out.verdict.reasons),
             design_id=design_id,
             options={k: b for k, (_, b) in out.projection.changed.items()},
             fit_rms_m=out.projection.fit_rms_m,

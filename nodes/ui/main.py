@@ -197,7 +197,7 @@ class UIAdapter:
     def on_adjust_status(self, msg: AdjustStatusMsg) -> None:
         if msg.request_id not in self._adjust_ids:
             return  # another client's request
-        self.ui.show_adjust_status(msg.state, msg.iteration, msg.text, msg.error)
+        self.ui.show_adjust_status(msg.state, msg.iteration, msg.text, msg.error, msg.goal_met)
 
     # -- in (Zenoh threads: store and return)
     def on_pattern(self, msg: PatternMsg) -> None:
