@@ -112,29 +112,6 @@ def diverged(s) -> bool:
     return not s.converged and not (np.isfinite(s.residual) and s.residual <= DIVERGED)
 
 
-COLLAPSED = 0.2
-"""a target triangle whose area is under this fraction of the source drape's was collapsed by the edit"""
-
-
-def uncollapsed(t_target: np.ndarray, t_src3: np.ndarray) -> np.ndarray:
-    """The target triangles the pattern is fitted to: where the edit collapsed
-    a triangle (a hem slid up a garment whose surface turns horizontal, as a
-    tenting shirt's does, can press one flat: area under :data:`COLLAPSED`
-    of the source drape's), the source drape's triangle instead. A collapsed
-    rest triangle would give the embedding nothing to hold (the shirt with
-    set-in sleeves, hem -10 cm: one triangle of area 5e-20 m² flipped in the
-    flattened pattern and every solve diverged). The stretch and the
-    distances are still measured against the real target."""
-    a_t = np.abs(np.linalg.det(t_target))
-    a_s = np.abs(np.linalg.det(t_src3))
-    bad = a_t < COLLAPSED * a_s
-    if not bad.any():
-        return t_target
-    out = t_target.copy()
-    out[bad] = t_src3[bad]
-    return out
-
-
 def fixed_point_update(T: np.ndarray, t_k: np.ndarray, t_target: np.ndarray) -> np.ndarray:
     """Bartle eqs. 6-7 per triangle: ``T ← T (t_k)⁻¹ t_target``. T: pattern
     triangles (m, 2, 2) as edge matrices; t_k, t_target: simulated and target
@@ -186,14 +163,11 @@ def adjust(
     n = mesh.n_vertices
     t_g = frames3(x_target, tris)
     say = log or (lambda s: None)
-    t_fit = t_g  # what the pattern is fitted to: the target, its collapsed triangles uncollapsed
 
     tu = time.perf_counter()
     X = flatten(x_target, tris)
     if x_source is not None:
-        t_src3 = frames3(x_source, tris)
-        t_fit = uncollapsed(t_g, t_src3)
-        t0_tris = undo_compression(t_fit, t_src3, edges2(mesh.X, tris))
+        t0_tris = undo_compression(t_g, frames3(x_source, tris), edges2(mesh.X, tris))
         if not np.allclose(t0_tris, t_g):
             X = Embedding(tris, t0_tris, n).run(X, iters=embed_iters)
     X = align_panels(X, mesh.X, tris, mesh.tri_panel)
@@ -249,7 +223,7 @@ def adjust(
         if k == max_iters:
             break
         tu = time.perf_counter()
-        T_new = fixed_point_update(edges2(X, tris), t_k, t_fit)
+        T_new = fixed_point_update(edges2(X, tris), t_k, t_g)
         X = Embedding(tris, T_new, n).run(X, iters=embed_iters)
         X = align_panels(X, mesh.X, tris, mesh.tri_panel)
         raw_mismatch = max_seam_mismatch(mesh, X, mesh.X)
