@@ -408,3 +408,28 @@ def test_gradient_step_with_stretch_term_approaches_a_reachable_target_keeping_s
         np.abs(edge_lengths(X1, e) - edge_lengths(X_t, e)).mean()
         < 0.5 * np.abs(edge_lengths(m.X, e) - edge_lengths(X_t, e)).mean()
     )
+
+
+def test_verdicts_worst_point_is_where_the_hausdorff_distance_is():
+    """couture.adjust.verdict names where the worst point is: on a flat sheet
+    and the same sheet with one vertex lifted 5 cm, it is that vertex, 5 cm
+    off, found on the lifted surface (the flat one is nowhere 5 cm from it)."""
+    from couture.adjust.geometry import hausdorff
+    from couture.adjust.verdict import worst_point
+
+    g = np.linspace(0.0, 0.4, 9)
+    X, Y = np.meshgrid(g, g)
+    x = np.column_stack([X.ravel(), np.zeros(X.size), Y.ravel()])
+    idx = np.arange(81).reshape(9, 9)
+    tris = np.concatenate(
+        [
+            np.column_stack([idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel()]),
+            np.column_stack([idx[:-1, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()]),
+        ]
+    )
+    lifted = x.copy()
+    lifted[40, 1] += 0.05  # the middle vertex
+    w = worst_point(x, lifted, tris)
+    assert w["on"] == "drape" and w["distance"] == pytest.approx(0.05, rel=1e-9)
+    assert np.allclose(w["drape_point"], lifted[40]) and w["target_point"][1] == pytest.approx(0.0)
+    assert w["distance"] == pytest.approx(hausdorff(x, lifted, tris)["hausdorff"])
