@@ -28,7 +28,7 @@ from couture.cloth.material import (
     lame_parameters,
     strip_rigidity,
 )
-from couture.cloth.model import BEND_CONSTANT, bending_weights
+from couture.cloth.model import BEND_CONSTANT, CLAMP_HINGE_FACTOR, bending_weights, clamped_hinges
 from couture.cloth.testing import random_drape, small_quality_mesh
 from couture.mesh import GarmentMesh, grid_sheet
 from couture.sensitivity.dfdx import DForcesDX
@@ -211,6 +211,79 @@ def test_rest_shape_derivative_against_rebuilt_models_and_the_sensitivity_matrix
     for d in dirs:
         ref = model.dforces_dX(x, d).reshape(-1)
         np.testing.assert_allclose(J.apply(d), ref, rtol=0, atol=1e-10 * np.abs(ref).max())
+
+
+# ---------------------------------------------------------------- clamps
+
+
+def held_band(mesh: GarmentMesh, width: float = 0.025) -> np.ndarray:
+    """The vertices of panel 'a' within ``width`` [m] of its left edge: a clamp
+    holding whole triangles (the bench's cantilever holds its strip so)."""
+    a = np.unique(mesh.tris[mesh.tri_panel == 0])
+    return a[mesh.X[a, 0] < mesh.X[a, 0].min() + width].astype(np.int32)
+
+
+@pytest.mark.parametrize("fabric", ["iso", "denim"])
+def test_a_clamps_hinges_keep_every_derivative(fabric):
+    """Held triangles meeting free ones make clamp hinges (``clamped_hinges``):
+    twice the strip rigidity D(θ) of their direction (``strip_law``), for an
+    isotropic fabric too (then through the per-hinge path); gradient, Hessian
+    and rest-shape derivative (matrix-free and the sensitivity's matrix)
+    against central differences."""
+    mesh = two_panels()
+    mesh.pinned = held_band(mesh)
+    scene = Scene(panel_fabrics={"a": DENIM}) if fabric == "denim" else Scene()
+    model = ClothModel(mesh, ISO, scene)
+    clamp = model.bend_clamped
+    assert clamp.sum() >= 5 and model.bend_directional
+    np.testing.assert_array_equal(clamp, clamped_hinges(model.bend_stencils, model.free))
+    k = model.hinge_stiffness()
+    kw, kf, kb = (3e-5, 1.5e-5, 1e-5) if fabric == "denim" else (1e-4,) * 3
+    t = model.X[model.bend_stencils[clamp, 1]] - model.X[model.bend_stencils[clamp, 0]]
+    t /= np.linalg.norm(t, axis=1)[:, None]
+    theta = np.arcsin(np.clip(np.abs(np.sum(t * model.bend_warp[clamp], axis=1)), 0.0, 1.0))
+    np.testing.assert_allclose(k[clamp], CLAMP_HINGE_FACTOR * strip_rigidity(kw, kf, kb, theta), rtol=1e-12)
+    unheld = ClothModel(GarmentMesh(**{**mesh.__dict__, "pinned": np.zeros(0, np.int32)}), ISO, scene)
+    np.testing.assert_allclose(k[~clamp], unheld.hinge_stiffness()[~clamp], rtol=1e-12)
+    if fabric == "iso":
+        assert not unheld.bend_directional and np.all(k[~clamp] == ISO.bend_stiffness)
+    x = random_drape(mesh, seed=11)
+    x[~model.free] = unheld.mesh.x0[~model.free]
+    f = model.forces(x, ["bending"])
+    assert np.abs(f - unheld.forces(x, ["bending"])).max() > 1e-3 * np.abs(f).max()
+    check_gradient(
+        lambda y: model.energy(y, ["bending"]), -f, x, h=1e-6, rtol=1e-6, floor=np.abs(f).max(), what="gradient"
+    )
+    H = model.stiffness(x, ["bending"], project=False)
+    check_hessian(lambda y: -model.forces(y, ["bending"]), H, x, h=1e-6, rtol=1e-6, what="Hessian")
+    rng = np.random.default_rng(12)
+    dirs = [rng.normal(size=mesh.X.shape) for _ in range(2)]
+    check_jacobian(
+        lambda X: ClothModel(GarmentMesh(**{**mesh.__dict__, "X": X}), ISO, scene).forces(x, ["bending"]),
+        lambda d: model.dforces_dX(x, d, ["bending"]),
+        mesh.X,
+        h=1e-6,
+        rtol=1e-6,
+        dirs=dirs,
+        what="dforces_dX bending",
+    )
+    J = DForcesDX(model, x, np.arange(3 * model.n))
+    for d in dirs:
+        ref = model.dforces_dX(x, d).reshape(-1)
+        np.testing.assert_allclose(J.apply(d), ref, rtol=0, atol=1e-10 * np.abs(ref).max())
+    # one k for every hinge keeps the clamp's factor
+    model.set_bend_stiffness(2e-4)
+    k = model.hinge_stiffness()
+    assert np.all(k[clamp] == 4e-4) and np.all(k[~clamp] == 2e-4)
+
+
+def test_pins_on_single_vertices_make_no_clamp():
+    """A pinned row (an edge held, no whole triangle) is no clamp: the isotropic
+    model keeps its one k_b and today's path."""
+    mesh = two_panels()
+    mesh.pinned = np.nonzero(mesh.X[:, 0] < mesh.X[:, 0].min() + 0.005)[0].astype(np.int32)
+    model = ClothModel(mesh, ISO, Scene())
+    assert len(mesh.pinned) >= 3 and not model.bend_clamped.any() and not model.bend_directional
 
 
 # ---------------------------------------------------------------- closed forms

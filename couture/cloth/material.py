@@ -249,6 +249,16 @@ def hinge_law(kw: float, kf: float, kb: float, field: str = "fabric.bend_bias") 
     return np.array([a0 + a2 + a4, -2.0 * a2 - 8.0 * a4, 8.0 * a4, 1.0, 0.0, 0.0])
 
 
+def strip_law(kw: float, kf: float, kb: float) -> np.ndarray:
+    """(6,) the strip rigidity D(θ) itself (``strip_rigidity``) in ``hinge_law``'s
+    form, u = sin²θ: D = k_w + (4 k_b - 3 k_w - k_f) u - (4 k_b - 2 k_w - 2 k_f) u².
+    For hinges that all lie along one line (a clamp's, ``couture.cloth.model``):
+    they bend only across it, so each carries D of its own direction, not the
+    law calibrated for evenly spread hinge directions."""
+    d4 = 4.0 * kb - 2.0 * kw - 2.0 * kf
+    return np.array([kw, 4.0 * kb - 3.0 * kw - kf, -d4, 1.0, 0.0, 0.0])
+
+
 def hinge_stiffness_at(law: np.ndarray, theta) -> np.ndarray:
     """k(θ) [N m] of a hinge law (``hinge_law``), θ [rad] from the warp to the hinge's normal."""
     u = np.sin(theta) ** 2
@@ -315,9 +325,10 @@ class GarmentMaterial:
         rho = np.array([float(f.area_density) for f in self.fabrics])
         return rho[self.tri_fabric]
 
-    def bending(self, stencil_tri: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def bending(self, stencil_tri: np.ndarray, clamped: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(law (e, 6) ``hinge_law`` [N m], warp (e, 2)) of every hinge, from the
-        fabric and grain of its first triangle ``stencil_tri`` (e,)."""
+        fabric and grain of its first triangle ``stencil_tri`` (e,); the hinges
+        ``clamped`` (e,) bool get ``strip_law`` instead (a clamp line's)."""
         laws = np.array(
             [
                 hinge_law(*bend_rigidities(f), field=f"{p}.bend_bias")
@@ -325,7 +336,11 @@ class GarmentMaterial:
             ]
         ).reshape(-1, 6)
         fi = self.tri_fabric[stencil_tri]
-        return np.ascontiguousarray(laws[fi]), np.ascontiguousarray(self.warp[stencil_tri])
+        law = laws[fi]
+        if clamped is not None and clamped.any():
+            strip = np.array([strip_law(*bend_rigidities(f)) for f in self.fabrics]).reshape(-1, 6)
+            law[clamped] = strip[fi[clamped]]
+        return np.ascontiguousarray(law), np.ascontiguousarray(self.warp[stencil_tri])
 
 
 _MEMBRANE_KEYS = ("stretch_stiffness", "poisson_ratio", "area_density") + ORTHOTROPIC_FIELDS
