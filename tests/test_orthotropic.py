@@ -356,7 +356,7 @@ def test_the_hinge_law_gives_strips_their_rigidity_where_it_can_and_stays_positi
     k = hinge_stiffness_at(hinge_law(kw, kf, kb), theta)
     assert k.min() >= BEND_HINGE_FLOOR * kb * (1 - 1e-6)
     eff = effective_strip_rigidity(kw, kf, kb, np.array([0, np.pi / 2, np.pi / 4]))
-    blend = np.array([2.22, 1.36, 1.42]) * 1e-5  # D on every hinge (module docstring)
+    blend = np.array([2.32, 1.34, 1.42]) * 1e-5  # D on every hinge (module docstring)
     assert blend[0] < eff[0] < kw and blend[1] < eff[1] < kf and kb < eff[2] < blend[2]
     # isotropic: one stiffness on every hinge, exactly
     assert np.array_equal(hinge_law(2e-5, 2e-5, 2e-5), [2e-5, 0, 0, 1, 0, 0])
@@ -380,14 +380,30 @@ def _cylinder_bending_energy(model, direction):
     return model.energy(x, ["bending"])
 
 
+IMPOSED_RESPONSE = (0.54, 0.27)
+"""(f2, f4) of a cylinder imposed on a quality mesh (couture.cloth.material docstring)"""
+
+
+def imposed_strip_rigidity(kw: float, kf: float, kb: float, beta: float) -> float:
+    """[N m] the hinge law's (a0, a2, a4) felt through ``IMPOSED_RESPONSE`` by a bend along β."""
+    law = hinge_law(kw, kf, kb)
+    a4 = law[2] / 8.0
+    a2 = -(law[1] + 8.0 * a4) / 2.0
+    a0 = law[0] - a2 - a4
+    f2, f4 = IMPOSED_RESPONSE
+    return a0 + f2 * a2 * math.cos(2 * beta) + f4 * a4 * math.cos(4 * beta)
+
+
 @pytest.mark.parametrize("grain", [0.0, 0.5])
 @pytest.mark.parametrize("rigidities", [(3.0, 1.5, 2.25), (3.0, 1.5, 1.0)])
 def test_a_strip_along_warp_weft_or_bias_bends_with_its_rigidity(grain, rigidities):
-    """A cylindrical bend of a quality-meshed sheet along the warp, the weft
-    and the bias costs what ``effective_strip_rigidity`` says (= the fabric's
-    k_w, k_f, k_b where the hinge law is fully calibrated, the first case)
-    times the isotropic model's energy at k_b = 1 N m, within 6 % (the mesh's
-    hinge directions are not exactly even), at any grain."""
+    """A cylindrical bend imposed on a quality-meshed sheet along the warp,
+    the weft and the bias costs the hinge law's a0 + f2 a2 cos 2β + f4 a4 cos 4β
+    with the imposed response (``IMPOSED_RESPONSE``, 1/1.2 of the relaxed one
+    the law is calibrated to) times the isotropic model's energy at
+    k_b = 1 N m, within 6 % (the mesh's hinge directions are not exactly
+    even), at any grain; the relaxed strip is ``effective_strip_rigidity``
+    (the cantilever bench, docs/fabrics.md)."""
     mesh = grid_sheet(0.4, 0.4, 21, 21)
     mesh.panel_grain = np.array([grain])
     iso = ClothModel(mesh, Fabric(bend_stiffness=1.0, stretch_stiffness=100.0), Scene(gravity=False))
@@ -396,7 +412,7 @@ def test_a_strip_along_warp_weft_or_bias_bends_with_its_rigidity(grain, rigiditi
     model = ClothModel(mesh, fab, Scene(gravity=False))
     measured = {}
     for beta, name in ((0.0, "warp"), (math.pi / 2, "weft"), (math.pi / 4, "bias")):
-        want = float(effective_strip_rigidity(kw, kf, kb, beta))
+        want = float(imposed_strip_rigidity(kw, kf, kb, beta))
         a = grain + beta  # the bend's direction: beta from the warp, the warp at grain from +y
         d = np.array([-math.sin(a), math.cos(a)])
         measured[name] = _cylinder_bending_energy(model, d) / _cylinder_bending_energy(iso, d)
