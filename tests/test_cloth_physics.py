@@ -171,19 +171,22 @@ def test_small_deflection_cantilever_converges_to_beam_theory():
 
     A convergence study rather than one mesh under a bound set just above its
     measured error (it was 5 % for 3.4 % at h = 3.3 mm): the tip error against
-    mesh size h = 20 .. 2.5 mm, the rate fitted on log-log (measured 17.8,
-    12.9, 7.4, 3.1 %; rate 0.84, first order as the hinge discretization is),
-    must fall with h at a rate of at least 0.6, so the discrete strip tends to
-    beam theory (a wrong EI would leave a constant error and a rate near 0)."""
+    mesh size h = 20 .. 2.5 mm, the rate fitted on log-log (measured 8.6, 9.6,
+    4.9, 1.9 %; rate 0.74, 1.16 from 10 mm on), must fall with h at a rate of
+    at least 0.6, so the discrete strip tends to beam theory (a wrong EI would
+    leave a constant error and a rate near 0). Before the clamp's hinges got
+    their factor (``couture.cloth.model``, Clamps) the errors were 17.8, 12.9,
+    7.4, 3.1 %: the clamp acted half a row inside the held region. The 20 mm
+    mesh (one row of cells in the clamp, five across) is off the trend."""
     hs, errs = [], []
     for nx, ny in CANTILEVER_MESHES:
         hs.append(0.22 / (nx - 1))
         errs.append(_cantilever_tip_error(nx, ny))
-    assert all(e > 0 for e in errs), errs  # stiffer than the continuum, from above
+    assert all(e > 0 for e in errs), errs  # softer than the continuum, from above
     rate = np.polyfit(np.log(hs), np.log(errs), 1)[0]
     assert rate >= 0.6, (rate, errs)
-    assert errs[-1] < 0.05, errs
-    assert all(b < a for a, b in zip(errs, errs[1:], strict=False)), errs
+    assert errs[-1] < 0.03, errs
+    assert all(b < a for a, b in zip(errs[1:], errs[2:], strict=False)), errs
 
 
 def test_total_weight():
