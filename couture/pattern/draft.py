@@ -38,9 +38,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from couture.pattern.drafted import DraftedPattern, Panel, SeamSpec, Segment
 from couture.pattern.errors import PatternError
@@ -50,6 +50,9 @@ from couture.pattern.placement import fit_ring, place
 from couture.pattern.slopers import SLOPERS, SloperDraft
 from couture.pattern.slopers.base import SloperDef
 from schemas.design import Design, Stroke
+
+if TYPE_CHECKING:
+    from scipy.interpolate import CubicSpline
 
 SPACING = 0.01
 """[m] target polyline spacing at default size"""
@@ -291,6 +294,9 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
             s_prev = s_i
         ss.append(1.0)
         dn.append(0.0)
+        # imported here: scipy.interpolate takes 0.2-0.3 s to import, and every node imports this module
+        from scipy.interpolate import CubicSpline
+
         seg.disp = CubicSpline(ss, dn, bc_type="clamped")
     for p in free:
         apply_piece_curves(p, free_segs[p.name])

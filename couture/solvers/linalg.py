@@ -276,6 +276,34 @@ class _CholmodFactor(Factor):
 _PARDISO_FN = None
 
 
+def _pardiso_fn():
+    """MKL's ``pardiso`` with pypardiso's argument types, loaded once a process.
+
+    pypardiso looks for mkl_rt with ``find_library`` and then a recursive glob
+    over ``sys.prefix/lib*``, the whole environment: 0.2 s a process on an
+    idle machine (0.6 s loaded), paid by every solver and sensitivity node at
+    its first factorization. Its wheel puts mkl_rt in ``sys.prefix/lib``:
+    looked for there first, and handed to pypardiso through its
+    ``PYPARDISO_MKL_RT`` for the construction only."""
+    global _PARDISO_FN
+    if _PARDISO_FN is None:
+        import glob
+        import sys
+
+        import pypardiso
+
+        key = "PYPARDISO_MKL_RT"
+        found = [] if key in os.environ else sorted(glob.glob(os.path.join(sys.prefix, "lib", "*mkl_rt*")), key=len)
+        if found:
+            os.environ[key] = found[0]
+        try:
+            _PARDISO_FN = pypardiso.PyPardisoSolver(mtype=2)._mkl_pardiso
+        finally:
+            if found:
+                del os.environ[key]
+    return _PARDISO_FN
+
+
 class _PardisoFactor(Factor):
     """MKL PARDISO through pypardiso's library loader, called directly so the
     symbolic phase (METIS ordering, 11) runs once per sparsity pattern and a
@@ -306,13 +334,8 @@ class _PardisoFactor(Factor):
     def __init__(self, A):
         import ctypes
 
-        import pypardiso
-
-        global _PARDISO_FN
         self._ct = ctypes
-        if _PARDISO_FN is None:  # pypardiso finds mkl_rt (a glob over the venv: ~0.1 s) and sets argtypes
-            _PARDISO_FN = pypardiso.PyPardisoSolver(mtype=2)._mkl_pardiso
-        self._fn = _PARDISO_FN
+        self._fn = _pardiso_fn()
         self._pt = np.zeros(64, dtype=np.int64)
         self._iparm = np.zeros(64, dtype=np.int32)
         self._iparm[0] = 1  # explicit parameters below, otherwise defaults
