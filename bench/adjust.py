@@ -139,6 +139,10 @@ def main(argv: list[str] | None = None) -> int:
                         print(f"   refused: {e}", flush=True)
                         runs.append({"case": case_name, "solver_node": solver, "vertices_asked": n, "refused": str(e)})
                         continue
+                    except RuntimeError as e:  # the source drape failed: nothing to edit; the next run goes on
+                        print(f"   FAILED: {e}", flush=True)
+                        runs.append({"case": case_name, "solver_node": solver, "vertices_asked": n, "failed": str(e)})
+                        continue
                     case.verdict = assess(case, body=body_for(design))
                     png = None
                     if a.png_all or (solver == names[0] and n == max(a.vertices)):
@@ -162,11 +166,13 @@ def main(argv: list[str] | None = None) -> int:
                     )
                     print(f"   {case.verdict.text()}", flush=True)
                     runs.append(s)
+                    write_results(a.out, "adjust", {"partial": True, "runs": runs})  # kept if a later run dies
     print(f"\n{'case':28} {'solver':15} {'verts':>5} {'flat H%':>7} {'H%':>6} {'S':>6} {'solves':>6} {'s':>5} goal")
-    done = [s for s in runs if "refused" not in s]
+    done = [s for s in runs if "refused" not in s and "failed" not in s]
     for s in runs:
-        if "refused" in s:
-            print(f"{s['case']:28} {s['solver_node']:15} {s['vertices_asked']:5d} refused: {s['refused'][:90]}")
+        if "refused" in s or "failed" in s:
+            why = f"refused: {s['refused']}" if "refused" in s else f"FAILED: {s['failed']}"
+            print(f"{s['case']:28} {s['solver_node']:15} {s['vertices_asked']:5d} {why[:100]}")
             continue
         v = s["verdict"]
         print(
@@ -175,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{'yes' if v['met'] else 'NO'}"
         )
     met = sum(s["goal_met"] for s in done)
-    print(f"\ngoal met in {met} of {len(done)} runs ({len(runs) - len(done)} refused)")
+    print(f"\ngoal met in {met} of {len(done)} runs ({len(runs) - len(done)} refused or failed)")
     for s in done:
         f = s.get("design_fit")
         if f is None:

@@ -433,3 +433,29 @@ def test_verdicts_worst_point_is_where_the_hausdorff_distance_is():
     assert w["on"] == "drape" and w["distance"] == pytest.approx(0.05, rel=1e-9)
     assert np.allclose(w["drape_point"], lifted[40]) and w["target_point"][1] == pytest.approx(0.0)
     assert w["distance"] == pytest.approx(hausdorff(x, lifted, tris)["hausdorff"])
+
+
+def test_a_failed_resimulation_ends_the_updates_and_keeps_the_iterates_before_it(skirt):
+    """A solver node that answers a solve with an error (a factorization that
+    failed at every shift: the 1.6k shirt, once) ends the fixed point there;
+    the pattern returned is the best iterate whose solve gave a drape, and
+    the failure is named, not raised (it had stopped `couture bench adjust`)."""
+    from couture.adjust.fixed_point import adjust, local_simulator
+    from couture.adjust.target import hem_edit
+
+    design, mesh, x = skirt
+    target = hem_edit(x, mesh.tris, -0.1)
+    real = local_simulator(mesh, design)
+    calls = []
+
+    def fails_on_the_third(X, xw):
+        calls.append(1)
+        if len(calls) == 3:
+            raise RuntimeError("solver solver-newton failed: factorization failed")
+        return real(X, xw)
+
+    r = adjust(mesh, target.x, fails_on_the_third, x_source=x, max_iters=4, stop_stretch=1.1, stagnation=-1, log=None)
+    assert len(r.history) == 3 and "iteration 2" in r.stopped and "diverged" in r.stopped
+    assert not r.history[2].converged and r.history[2].hausdorff_m == float("inf")
+    assert r.best in (0, 1) and np.isfinite(r.history[r.best].hausdorff_m)
+    assert r.X is r.patterns[r.best] and not np.allclose(r.x, target.x)  # a real drape, not the warm start

@@ -107,6 +107,17 @@ DIVERGED = 1e-2
 time-capped solve a little above its tolerance still did)"""
 
 
+def solve_or_fail(simulate: Simulate, X: np.ndarray, x_warm: np.ndarray) -> Simulated:
+    """``simulate(X, x_warm)``, a solve that failed (the solver's error: a
+    factorization that failed at every shift, a node gone) returned as a
+    diverged one with the error as its diagnosis: one failed re-simulation
+    ends the updates, it does not lose the iterates before it."""
+    try:
+        return simulate(X, x_warm)
+    except RuntimeError as e:
+        return Simulated(np.array(x_warm, np.float64), float("inf"), False, diagnosis=f"the solve failed: {e}")
+
+
 def diverged(s) -> bool:
     """Did this solve (a :class:`Simulated` or an :class:`Iteration`) give no drape at all?"""
     return not s.converged and not (np.isfinite(s.residual) and s.residual <= DIVERGED)
@@ -179,10 +190,13 @@ def adjust(
     drapes: list[np.ndarray] = []
     stopped = f"{max_iters} iterations"
     for k in range(max_iters + 1):
-        sim = simulate(X, x_target)
+        sim = solve_or_fail(simulate, X, x_target)
         t_k = frames3(sim.x, tris)
         S = stretch(t_g, t_k)
         H = hausdorff(x_target, sim.x, tris)
+        if diverged(sim):  # no drape: nothing measured
+            S = np.full_like(S, np.nan)
+            H = {"hausdorff": float("inf"), "mean": float("inf")}
         it = Iteration(
             k=k,
             stretch_mean=float(S.mean()),

@@ -40,7 +40,7 @@ import numpy as np
 
 from couture.mesh import GarmentMesh
 
-from .fixed_point import MANNEQUIN_HEIGHT, Simulate, diverged, with_rest
+from .fixed_point import MANNEQUIN_HEIGHT, Simulate, diverged, solve_or_fail, with_rest
 from .geometry import frames3, hausdorff, stretch
 from .seams import equalize_seams
 
@@ -184,7 +184,7 @@ def gradient_polish(
             Xa = X + a * dX
             if equalize:
                 Xa = equalize_seams(mesh, Xa, reference=mesh.X)
-            sim = simulate(Xa, x_target)
+            sim = solve_or_fail(simulate, Xa, x_target)
             tried += 1
             H = hausdorff(x_target, sim.x, mesh.tris)
             S = float(stretch(t_g, frames3(sim.x, mesh.tris)).mean())
