@@ -31,6 +31,7 @@ from dataclasses import asdict
 import numpy as np
 
 from bench import add_out_arg, source_commit, write_results
+from couture.adjust.settings import GOAL
 
 EDITS = {
     "hem_shorter": ("hem", -0.10),
@@ -39,7 +40,6 @@ EDITS = {
     "waist_tighter": ("waist", -0.02),
 }
 DESIGNS = ["default_skirt", "dress", "dress_waist", "shirt", "shirt_set_in", "trousers", "skirt_edited"]
-GOAL = {"hausdorff_pct": 1.0, "stretch": 0.98, "solves": 5}
 
 
 def run_one(
@@ -124,7 +124,7 @@ def replay(
     steps: int,
     *,
     full_only: bool = False,
-    budget: int = GOAL["solves"],
+    budget: int = GOAL.solves,
     stop_stretch: float = 0.995,
     stagnation: float = 1e-3,
 ) -> dict | None:
@@ -180,11 +180,7 @@ def score(cases: list[dict], updates: int, weight: float | None, steps: int, ful
         if r is None:
             missing += 1
             continue
-        ok = (
-            r["hausdorff_pct"] <= GOAL["hausdorff_pct"]
-            and r["stretch"] >= GOAL["stretch"]
-            and r["solves"] <= GOAL["solves"]
-        )
+        ok = r["hausdorff_pct"] <= GOAL.hausdorff_pct and r["stretch"] >= GOAL.stretch and r["solves"] <= GOAL.solves
         met += ok
         worst_h, worst_s = max(worst_h, r["hausdorff_pct"]), min(worst_s, r["stretch"])
         solves.append(r["solves"])

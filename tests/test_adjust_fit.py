@@ -90,7 +90,7 @@ class _Cylinder:
         r = P[:, [0, 2]] - [0.0, TORSO_AXIS_Z]
         rn = np.linalg.norm(r, axis=1)
         g = np.zeros_like(P)
-        g[:, [0, 2]] = r / rn[:, None]
+        g[:, [0, 2]] = r / np.maximum(rn, 1e-12)[:, None]  # (on the axis: no direction)
         return rn - self.R, g
 
 
