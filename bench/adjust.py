@@ -20,7 +20,7 @@ design the adjust node would publish (``couture.adjust.service.fit_design``:
 sloper options fitted to the adjusted pattern, corrected on its drapes): the
 change its own drape achieves against the ask, the options, the drapes it
 took (``design_fit``; ``--no-fit`` leaves it out). Writes
-``adjust.json`` and ``adjust_<case>.png`` (target against the re-simulated
+``adjust.json`` and ``adjust/<design>_<edit>.png`` (target against the re-simulated
 drapes, and the patterns; the first solver at the largest size, or every run
 with ``--png-all``) to ``--out``.
 
@@ -146,11 +146,8 @@ def main(argv: list[str] | None = None) -> int:
                     case.verdict = assess(case, body=body_for(design))
                     png = None
                     if a.png_all or (solver == names[0] and n == max(a.vertices)):
-                        png = a.out / (
-                            f"adjust_{case_name.replace('/', '_')}.png"
-                            if not a.png_all
-                            else f"adjust_{case_name.replace('/', '_')}_{solver}_{n}.png"
-                        )
+                        stem = case_name.replace("/", "_")
+                        png = a.out / "adjust" / (f"{stem}.png" if not a.png_all else f"{stem}_{solver}_{n}.png")
                         png.parent.mkdir(parents=True, exist_ok=True)
                         plot_case(case, png)
                     s = case.summary()
