@@ -281,6 +281,7 @@ def run_case(
             "solver": src.solver,
             "residual": src.residual,
             "converged": src.converged,
+            "diagnosis": src.diagnosis,
             "wall_time_s": src.wall_time_s,
         },
         timings={

@@ -104,10 +104,8 @@ def assess(case, goal: Goal = GOAL, body=None) -> Verdict:
     chosen = case.result.history[case.result.best]
     unconverged = [] if chosen.converged or any(g.accepted for g in case.gradient) else [chosen.k]
     if not case.source_solve.get("converged", True):
-        reasons.append(
-            f"the source drape did not converge (residual {case.source_solve.get('residual', float('nan')):.1e}): "
-            "the target is an edit of an unsettled drape"
-        )
+        why = case.source_solve.get("diagnosis") or f"residual {case.source_solve.get('residual', float('nan')):.1e}"
+        reasons.append(f"the source drape did not converge ({why}): the target is an edit of an unsettled drape")
     if unconverged:
         reasons.append(
             f"the re-simulation of iteration(s) {unconverged} did not converge within its time: its distance and "
