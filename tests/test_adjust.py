@@ -459,3 +459,30 @@ def test_a_failed_resimulation_ends_the_updates_and_keeps_the_iterates_before_it
     assert not r.history[2].converged and r.history[2].hausdorff_m == float("inf")
     assert r.best in (0, 1) and np.isfinite(r.history[r.best].hausdorff_m)
     assert r.X is r.patterns[r.best] and not np.allclose(r.x, target.x)  # a real drape, not the warm start
+
+
+def test_an_unconverged_source_drape_is_adjusted_and_named_in_the_verdict():
+    """An edit of a drape that did not settle is carried on by the command
+    and the adjust node alike (at 1.6k vertices dress_waist's Newton source
+    drapes stop just above tolerance and still meet the goal), and the
+    verdict names the source drape's own diagnosis."""
+    from couture.adjust.fixed_point import Simulated
+    from couture.adjust.pipeline import run_case
+    from couture.adjust.verdict import assess
+    from couture.client import load_design
+
+    design = load_design("couture/pattern/examples/default_skirt.json")
+    calls = []
+
+    def simulate_for(mesh):
+        def unsettled(X, xw):
+            calls.append(1)
+            return Simulated(np.asarray(xw, float), 5e-3, False, "stub-newton", 1.0, "in body: a vertex 2 mm inside")
+
+        return unsettled
+
+    case = run_case(design, "hem", -0.1, simulate_for, vertices=150, log=None)
+    assert len(calls) > 1 and not case.source_solve["converged"]
+    verdict = assess(case)
+    assert not verdict.met
+    assert any("source drape did not converge (in body: a vertex 2 mm inside)" in r for r in verdict.reasons)

@@ -127,11 +127,6 @@ def run_adjustment(
         log=log,
         settings=settings,
     )
-    if not case.source_solve["converged"]:
-        raise ValueError(
-            f"the design's drape did not converge on the {vertices}-vertex mesh "
-            f"({case.source_solve.get('diagnosis') or 'residual %.1e' % case.source_solve['residual']}): nothing to edit"
-        )
     case.verdict = assess(case, body=body_for(design))
     say("running", len(case.result.history) - 1, case.verdict.text())
     return fit_design(
