@@ -58,15 +58,13 @@ CASES = {f"{d}/{e}": (EXAMPLES / f"{d}.json", *EDITS[e]) for d in DESIGNS for e 
 
 
 def design_fit(client, solver: str, design, case, vertices: int) -> dict:
-    """The adjust node's design for ``case`` (its solves on ``solver``): what its drape achieves."""
-    from couture.adjust.service import fit_design
-    from couture.client import SolveFanout
+    """The adjust node's design for ``case`` (its solves on ``solver``,
+    ``couture.client.fit_on_bus`` as ``couture adjust`` calls it): what its drape achieves."""
+    from couture.client import fit_on_bus
 
     t0 = time.perf_counter()
     try:
-        out = fit_design(
-            design, case, lambda mesh: SolveFanout(client, mesh, design, [solver], max_seconds=60.0), vertices=vertices
-        )
+        out = fit_on_bus(client, [solver], design, case, vertices=vertices, max_seconds=60.0)
     except ValueError as e:
         return {"error": str(e), "asked_m": case.amount}
     p = out.projection
