@@ -15,11 +15,22 @@ It is a model of its own (the only solver here that is), built from the same
   ``ku = kv = fabric.stretch_stiffness`` (E·h [N/m], the uniaxial stiffness: BW
   has no Poisson coupling) and ``ks = mu`` (the shear modulus E·h/(2(1+nu)):
   for small shear Fu·Fv ≈ 2 eps_uv, so ks/2 (2 eps_uv)² = 2 mu eps_uv², StVK's);
+- an orthotropic fabric (warp, weft, shear stiffness; or panels of their own
+  fabric): Style3D's stretch is anisotropic in the panel's (u, v) axes, so each
+  vertex's panel coordinates are turned so that its panel's warp (grain) lies
+  along v and the weft along u, and each triangle gets ``(ku, kv, ks) =
+  (weft, warp, shear)`` of its own fabric (``tri_aniso_ke`` per triangle) and
+  the particles our lumped masses (each panel's own density). The Poisson
+  coupling nu12 is dropped, as above;
 - bending: Style3D's is the same quadratic isometric model as ours (Bergou 2006,
   ``½ k 3/(A0+A1) |w x|²``), so its per-edge stiffness is set to
   ``BEND_CONSTANT · fabric.bend_stiffness`` (our ``W = (k_b/2) c Σ 3/(A0+A1) |Kx|²``),
   written into ``edge_bending_properties`` directly (its anisotropic blend
   ``ku sin¹² + kv cos¹² + 4 ks sin² cos²`` is not isotropic for ku = kv = ks);
+  with directional or per-panel bending, each of its edges gets our hinge's
+  own stiffness (``ClothModel.hinge_stiffness``: the hinge law along the
+  grain), matched by the edge's two particles; an edge we have no hinge for
+  (across a welded seam) keeps ``fabric.bend_stiffness``;
 - mass: ``density = fabric.area_density`` [kg/m²] on the panel areas;
 - gravity: 9.81 m/s² along -y (newton's ``up_axis = Y``);
 - body: a sphere (``SphereBody``) or a half-space (``PlaneBody``) as newton shapes;
@@ -133,6 +144,7 @@ class PeerModel:
         mesh = model.mesh
         fab = model.fabric
         stretch = float(fab.stretch_stiffness)
+        mu_s = float(model.mu)
         with wp.ScopedDevice("cpu"):
             b = newton.ModelBuilder(up_axis=newton.Axis.Y, gravity=(0.0, -GRAVITY, 0.0))
             newton.solvers.SolverStyle3D.register_custom_attributes(b)
@@ -144,6 +156,7 @@ class PeerModel:
                 self.weld, self.unwelded = weld_seams(model)
             tris = np.asarray(mesh.tris, np.int64)
             indices = tris if self.weld is None else self.weld[tris]
+            panel_verts, tri_ke = peer_membrane(model)
             style3d.add_cloth_mesh(
                 b,
                 pos=wp.vec3(0.0, 0.0, 0.0),
@@ -151,11 +164,11 @@ class PeerModel:
                 vel=wp.vec3(0.0, 0.0, 0.0),
                 vertices=self.to_peer(np.asarray(mesh.x0, float)).tolist(),
                 indices=indices.ravel().tolist(),
-                panel_verts=np.asarray(model.X, float).tolist(),
+                panel_verts=panel_verts.tolist(),
                 panel_indices=tris.ravel().tolist(),
                 density=float(model.area_density),
                 particle_radius=float(model.contact_offset),
-                tri_aniso_ke=wp.vec3(stretch, stretch, float(model.mu)),
+                tri_aniso_ke=[wp.vec3(*k) for k in tri_ke] if tri_ke is not None else wp.vec3(stretch, stretch, mu_s),
                 edge_aniso_ke=wp.vec3(1.0, 1.0, 1.0),
             )
             n_peer = model.n if self.weld is None else int(self.weld.max()) + 1
@@ -168,8 +181,14 @@ class PeerModel:
             if model.body is not None:
                 self.body_kind = _add_body(b, model.body, model.scene, wp, newton, mu)
             m = b.finalize()
+            if tri_ke is not None:  # panels of their own density: our lumped masses, summed per particle
+                mass = np.asarray(model.mass, float)
+                if self.weld is not None:
+                    mass = np.bincount(self.weld, weights=mass, minlength=n_peer)
+                m.particle_mass.assign(mass.astype(np.float32))
+                m.particle_inv_mass.assign(np.where(mass > 0, 1.0 / np.maximum(mass, 1e-300), 0.0).astype(np.float32))
             ebp = m.edge_bending_properties.numpy()
-            ebp[:, 0] = BEND_CONSTANT * model.bend_stiffness
+            ebp[:, 0] = BEND_CONSTANT * peer_edge_stiffness(model, m.edge_indices.numpy(), self.weld)
             m.edge_bending_properties.assign(ebp)
             flags = m.particle_flags.numpy()
             pinned = np.nonzero(~model.free)[0]
@@ -200,6 +219,47 @@ class PeerModel:
 
     def from_peer(self, xp: np.ndarray) -> np.ndarray:
         return xp if self.weld is None else xp[self.weld]
+
+
+def peer_membrane(model) -> tuple[np.ndarray, np.ndarray | None]:
+    """(panel coordinates (n, 2) [m], per-triangle (ku, kv, ks) (m, 3) [N/m] or
+    None) for Style3D's stretch: the rest positions as they are and None (one
+    isotropic ``(E h, E h, mu)``) for one isotropic fabric; else each vertex's
+    coordinates turned so that its panel's warp lies along v, and each
+    triangle's (weft, warp, shear) stiffness of its own fabric."""
+    from couture.cloth.material import tensile_constants
+
+    X = np.asarray(model.X, float)
+    mat = getattr(model, "material", None)
+    if mat is None or not mat.orthotropic:
+        return X, None
+    tris = np.asarray(model.mesh.tris, np.int64)
+    warp = np.asarray(mat.warp, float)  # (m, 2) unit warp of each triangle, in material space
+    vw = np.zeros((len(X), 2))
+    vw[tris.reshape(-1)] = np.repeat(warp, 3, axis=0)  # a vertex lies in one panel: one grain
+    # u along the weft (the warp turned -90 degrees), v along the warp: a rotation
+    weft = np.column_stack([vw[:, 1], -vw[:, 0]])
+    P = np.column_stack([np.einsum("ij,ij->i", X, weft), np.einsum("ij,ij->i", X, vw)])
+    consts = np.array([tensile_constants(f) for f in mat.fabrics])  # (E1, E2, nu12, G12)
+    c = consts[mat.tri_fabric]
+    return P, np.column_stack([c[:, 1], c[:, 0], c[:, 3]])
+
+
+def peer_edge_stiffness(model, edges: np.ndarray, weld: np.ndarray | None) -> np.ndarray:
+    """(E,) bending stiffness [N m] of each of newton's bending edges ``edges``
+    (E, 4: opposite 0, opposite 1, edge vertex 0, edge vertex 1, in particles):
+    ``model.bend_stiffness``, or with per-hinge stiffness our hinge's on the same
+    two particles (an edge we have no hinge for keeps ``bend_stiffness``)."""
+    k = np.full(len(edges), float(model.bend_stiffness))
+    if not getattr(model, "bend_directional", False) or not len(model.bend_stencils):
+        return k
+    st = np.asarray(model.bend_stencils, np.int64)
+    ends = st[:, :2] if weld is None else weld[st[:, :2]]
+    ours = dict(zip(map(tuple, np.sort(ends, axis=1).tolist()), model.hinge_stiffness().tolist(), strict=True))
+    theirs = np.sort(np.asarray(edges, np.int64)[:, 2:4], axis=1)
+    for i, key in enumerate(map(tuple, theirs.tolist())):
+        k[i] = ours.get(key, k[i])
+    return k
 
 
 def weld_seams(model) -> tuple[np.ndarray, int]:
