@@ -234,3 +234,25 @@ def test_a_failing_draft_is_no_refusal(tmp_path):
         pytest.skip(f"cannot install FreeSewing: {r.stderr.strip().splitlines()[-1]}")
     assert r.returncode == 1, r.stderr[-2000:]
     assert "broken draft" in r.stderr
+
+
+def test_apt_refusing_valentina_is_a_refusal(tmp_path):
+    """Where valentina is missing and apt cannot install it (here a PATH
+    without valentina and an apt-get that cannot find the package): exit 75,
+    apt's reason last."""
+    bin_ = tmp_path / "bin"
+    bin_.mkdir()
+    for d in os.environ["PATH"].split(os.pathsep):
+        for tool in Path(d).glob("*") if Path(d).is_dir() else []:
+            if tool.name not in ("valentina", "apt-get", "sudo") and not (bin_ / tool.name).exists():
+                (bin_ / tool.name).symlink_to(tool)
+    (bin_ / "apt-get").write_text(
+        '#!/bin/sh\n[ "$1" = update ] && exit 0\necho "E: Unable to locate package valentina" >&2\nexit 100\n'
+    )
+    (bin_ / "sudo").write_text('#!/bin/sh\n[ "$1" = -n ] && shift\nexec "$@"\n')  # as root: no password
+    (bin_ / "apt-get").chmod(0o755)
+    (bin_ / "sudo").chmod(0o755)
+    r = _make(tmp_path, "valentina", {"PATH": str(bin_)})
+    assert r.returncode == REFUSED, r.stderr[-2000:]
+    last = r.stderr.strip().splitlines()[-1]
+    assert last == "package manager refused: apt-get install valentina: E: Unable to locate package valentina"
