@@ -1,7 +1,8 @@
 """Reading pattern pieces from other tools' files (couture.pattern.imported):
 this project's own DXF/SVG export read back (the round trip), Valentina's
 ASTM and AAMA DXF, FreeSewing's SVG (tests/data/imported/, made by
-tests/data/imported/make/make.sh with the real tools; never generated here).
+tests/data/imported/make/make.sh with the real tools, committed; drafted again
+and compared with these by tests/test_import_redraft.py).
 
 Numbers are checked against something independent of the reader: the drafted
 pattern that was exported, the other DXF flavour of the same Valentina file,

@@ -1,6 +1,6 @@
 // Drafts FreeSewing designs for two measurement sets and renders each to SVG
-// (the fixtures under tests/data/imported/freesewing/). Not run in CI: see make.sh.
-//   node freesewing.mjs OUTDIR   (with @freesewing/{core,models,penelope,titan,aaron,teagan} installed)
+// (the fixtures under tests/data/imported/freesewing/), run by make.sh (the test set-up and the remake).
+//   node freesewing.mjs OUTDIR   (with package.json's packages installed: npm ci)
 import { writeFileSync, mkdirSync } from 'node:fs'
 import { Penelope } from '@freesewing/penelope'
 import { Titan } from '@freesewing/titan'
