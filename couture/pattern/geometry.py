@@ -68,52 +68,73 @@ def point_in_polygon(pts: np.ndarray, poly: np.ndarray) -> np.ndarray:
     return (np.count_nonzero(cond & (x < xi), axis=1) % 2) == 1
 
 
-def self_intersections(P: np.ndarray, closed: bool = True, chunk: int = 512) -> list[tuple[int, int]]:
-    """Pairs (i, j) of non-adjacent polyline edges that cross (proper or touching).
+def _box_pairs(A: np.ndarray, B: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (i < j) of the edges A[i] -> B[i] whose bounding boxes
+    overlap (grown by ``margin``): a sweep along x (edges sorted by their
+    left end; each pairs with those starting within its x-extent), then the
+    y-extents. O(k log k + pairs) instead of every pair."""
+    k = len(A)
+    lo = np.minimum(A, B) - margin
+    hi = np.maximum(A, B) + margin
+    order = np.argsort(lo[:, 0], kind="stable")
+    xs = lo[order, 0]
+    end = np.searchsorted(xs, hi[order, 0], side="right")
+    start = np.arange(1, k + 1)
+    n = np.maximum(end - start, 0)
+    if not n.sum():
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    p = np.repeat(np.arange(k), n)
+    q = np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n) + np.repeat(start, n)
+    i, j = order[p], order[q]
+    keep = (lo[i, 1] <= hi[j, 1]) & (lo[j, 1] <= hi[i, 1])
+    i, j = i[keep], j[keep]
+    return np.minimum(i, j), np.maximum(i, j)
 
-    Edge i runs from P[i] to P[i+1] (wrapping when closed). Vectorized
-    orientation tests in chunks of rows (O(k^2) memory per chunk).
+
+def self_intersections(P: np.ndarray, closed: bool = True) -> list[tuple[int, int]]:
+    """Pairs (i, j), i < j, sorted, of non-adjacent polyline edges that cross
+    (properly, or collinear and overlapping).
+
+    Edge i runs from P[i] to P[i+1] (wrapping when closed). Only edges whose
+    bounding boxes overlap are tested (:func:`_box_pairs`), so an imported
+    outline of thousands of points costs milliseconds, not every pair.
     """
+    P = np.asarray(P, dtype=np.float64)
     A = P
     B = np.roll(P, -1, axis=0) if closed else P[1:]
     if not closed:
         A = P[:-1]
     k = len(A)
-    out: list[tuple[int, int]] = []
+    if k < 2:
+        return []
     scale = max(float(np.ptp(P, axis=0).max()), 1e-12)
     eps = 1e-12 * scale * scale
+    ii, jj = _box_pairs(A, B, 1e-9 * scale)
+    gap = jj - ii
+    far = (gap > 1) & ~(closed & (gap == k - 1))
+    ii, jj = ii[far], jj[far]
 
     def orient(p, q, r):
         return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
 
-    idx = np.arange(k)
-    for s in range(0, k, chunk):
-        i = idx[s : s + chunk]
-        a1, b1 = A[i][:, None, :], B[i][:, None, :]
-        a2, b2 = A[None, :, :], B[None, :, :]
-        d1 = orient(a1, b1, a2)
-        d2 = orient(a1, b1, b2)
-        d3 = orient(a2, b2, a1)
-        d4 = orient(a2, b2, b1)
-        cross = (d1 * d2 < -eps) & (d3 * d4 < -eps)
-        # bounding-box prefilter for the touching case is skipped: proper crossings only,
-        # plus collinear overlaps caught below
-        coll = (np.abs(d1) <= eps) & (np.abs(d2) <= eps)
-        if coll.any():
-            # collinear edges overlapping along their line
-            ea = b1 - a1
-            t0 = ((a2 - a1) * ea).sum(-1)
-            t1 = ((b2 - a1) * ea).sum(-1)
-            L2 = (ea * ea).sum(-1)
-            ov = np.maximum(np.minimum(t0, t1), 0) < np.minimum(np.maximum(t0, t1), L2) - eps
-            cross |= coll & ov
-        ii, jj = np.nonzero(cross)
-        ii = i[ii]
-        gap = np.abs(ii - jj)
-        adj = (gap <= 1) | (closed & (gap == k - 1))
-        keep = (~adj) & (ii < jj)
-        out.extend(zip(ii[keep].tolist(), jj[keep].tolist(), strict=True))
-    return out
+    a1, b1, a2, b2 = A[ii], B[ii], A[jj], B[jj]
+    d1 = orient(a1, b1, a2)
+    d2 = orient(a1, b1, b2)
+    d3 = orient(a2, b2, a1)
+    d4 = orient(a2, b2, b1)
+    cross = (d1 * d2 < -eps) & (d3 * d4 < -eps)
+    coll = (np.abs(d1) <= eps) & (np.abs(d2) <= eps)
+    if coll.any():
+        # collinear edges overlapping along their line
+        ea = b1 - a1
+        t0 = ((a2 - a1) * ea).sum(-1)
+        t1 = ((b2 - a1) * ea).sum(-1)
+        L2 = (ea * ea).sum(-1)
+        ov = np.maximum(np.minimum(t0, t1), 0) < np.minimum(np.maximum(t0, t1), L2) - eps
+        cross |= coll & ov
+    hit = np.column_stack([ii[cross], jj[cross]])
+    hit = hit[np.lexsort((hit[:, 1], hit[:, 0]))]
+    return [(int(a), int(b)) for a, b in hit]
 
 
 def segments_cross(P: np.ndarray, Q: np.ndarray) -> bool:
