@@ -169,10 +169,18 @@ def write_body_sections(obj: Path, path: Path) -> None:
 def sections(body: str = "default") -> dict[str, Section]:
     """The stored tables of a body ('default': regenerate with
     ``python -m couture.pattern.sections``; a graded body's are written by
-    ``couture bodies make``)."""
+    ``couture bodies make``; a body of measurements's are measured here on
+    first use and cached beside it)."""
+    import os
+
     from couture import bodies
 
-    with np.load(bodies.sections_path(body)) as z:
+    path = bodies.sections_path(body)
+    if not path.exists():
+        tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
+        write_body_sections(bodies.obj_path(body), tmp)
+        tmp.replace(path)
+    with np.load(path) as z:
         names = sorted({k.split(".")[0] for k in z.files})
         return {
             n: Section(
