@@ -6,8 +6,9 @@ a body for a measurement set on the spot. It deforms the shipped body nearest
 the request (all share the template topology, pose and axes) in three steps:
 
 - vertically, a piecewise-linear map of height: the floor stays, the crotch
-  goes to the requested inside leg length, the top of the head to the
-  requested stature (without a stature, the trunk keeps its length);
+  goes to the requested inside leg length, the waist to the requested waist
+  height, the top of the head to the requested stature (each not given keeps
+  the template's length above the one below);
 - radially, each horizontal section of the trunk and legs about its centre
   (x = 0, the middle of its depth) by a factor s(y), a monotone cubic through
   knots at the hip, waist and bust heights (held over the shoulders, fading
@@ -39,15 +40,26 @@ from couture.bodies.measure import MEASURES, Slicer, measure
 
 GIRTHS = ("bust_girth", "waist_girth", "hip_girth")
 
+WARP_MEASURES = (*MEASURES, "waist_height")
+"""what a warped body may be asked for [m]: MEASURES and the waist height
+(ISO 8559-1: floor to the waist; FreeSewing's waistToFloor), which places the
+waist between the crotch and the head and is matched to the 1 cm the waist's
+section search allows, not iterated"""
+
 PLAUSIBLE: dict[str, tuple[float, float]] = {
     "height": (1.2, 2.2),
     "bust_girth": (0.6, 1.7),
     "waist_girth": (0.45, 1.7),
     "hip_girth": (0.65, 1.8),
     "inseam": (0.5, 1.05),
+    "waist_height": (0.75, 1.45),
 }
 """[m] the range of each measurement a warped body accepts (adult bodies; the
 warp is tested within about 0.8..1.35 of the template's girths)"""
+
+WAIST_HEIGHT_TOL = 0.02
+"""[m] how near the requested waist height the measured one must be (the
+narrowest section's height moves with the girths around it)"""
 
 MAX_FACTOR = 1.6
 """largest ratio (either way) of a requested girth to the template's that the warp attempts"""
@@ -68,8 +80,8 @@ def check_measurements(meas: dict, where: str = "measurements") -> dict[str, flo
         raise ValueError(f"{where}: a body's measurements are a non-empty {{name: metres}} mapping, got {meas!r}")
     out: dict[str, float] = {}
     for k, v in meas.items():
-        if k not in MEASURES:
-            raise ValueError(f"{where}.{k}: not a body measurement; they are {list(MEASURES)} [m]")
+        if k not in WARP_MEASURES:
+            raise ValueError(f"{where}.{k}: not a body measurement; they are {list(WARP_MEASURES)} [m]")
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise ValueError(f"{where}.{k}: {v!r} is not a finite number [m]")
         lo, hi = PLAUSIBLE[k]
@@ -84,6 +96,11 @@ def check_measurements(meas: dict, where: str = "measurements") -> dict[str, flo
         )
     if "inseam" in out and "height" in out and out["inseam"] > 0.6 * out["height"]:
         raise ValueError(f"{where}.inseam: {out['inseam']:g} m is more than 60 % of the height {out['height']:g} m")
+    wh = out.get("waist_height")
+    if wh is not None and "inseam" in out and wh < out["inseam"] + 0.15:
+        raise ValueError(f"{where}.waist_height: {wh:g} m is less than 15 cm above the inseam {out['inseam']:g} m")
+    if wh is not None and "height" in out and wh > out["height"] - 0.4:
+        raise ValueError(f"{where}.waist_height: {wh:g} m is less than 40 cm below the height {out['height']:g} m")
     return out
 
 
@@ -152,12 +169,15 @@ class _Warp:
         zc = np.interp(np.arange(len(bins)), np.flatnonzero(ok), zc[ok])
         zc = np.convolve(np.pad(zc, 3, mode="edge"), np.ones(7) / 7, mode="valid")
         self.centre_z = np.interp(V[:, 1], bins + 0.005, zc)
-        # the vertical map: floor fixed, crotch -> inseam, top -> height
-        floor, crotch, top = m0["floor_y"], m0["crotch_y"], m0["floor_y"] + m0["height"]
+        # the vertical map: floor fixed, crotch -> inseam, waist -> waist height, top -> height
+        floor, crotch, waist, top = m0["floor_y"], m0["crotch_y"], m0["waist_y"], m0["floor_y"] + m0["height"]
         inseam = target.get("inseam", m0["inseam"])
-        height = target.get("height", m0["height"] - m0["inseam"] + inseam)
-        self.y_knots = np.array([floor, crotch, top])
-        self.y_to = np.array([floor, floor + inseam, floor + height])
+        waist_height = target.get("waist_height", waist - floor + inseam - m0["inseam"])
+        height = target.get("height", waist_height + top - waist)
+        self.y_knots = np.array([floor, crotch, waist, top])
+        self.y_to = np.array([floor, floor + inseam, floor + waist_height, floor + height])
+        if np.any(np.diff(self.y_to) < 0.1 * np.diff(self.y_knots)):
+            raise ValueError(f"measurements: inseam, waist height and height {self.y_to - floor} m are out of order")
         # the arms' Laplacian (uniform weights) for the harmonic extension
         w = np.ones(len(e))
         L = coo_matrix((np.r_[w, w], (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(n, n)).tocsr()
@@ -278,18 +298,29 @@ def warp_body(
     s = {k: (target[k] / m0[k] if k in target else 1.0) for k in GIRTHS}
     history: list[dict[str, float]] = []
     V, m = V0, m0
+    exact = [k for k in target if k in MEASURES]
     for _ in range(max_iter):
         V = w.apply(s)
         m = measure(V, F)
-        err = {k: m[k] - target[k] for k in target}
+        err = {k: m[k] - target[k] for k in exact}
+        if "waist_height" in target:
+            err["waist_height"] = m["waist_y"] - m["floor_y"] - target["waist_height"]
         history.append({k: round(v, 6) for k, v in err.items()})
-        if max(abs(v) for v in err.values()) < tol / 4:
+        if (
+            max(abs(v) for k, v in err.items() if k != "waist_height") < tol / 4
+            and abs(err.get("waist_height", 0.0)) < WAIST_HEIGHT_TOL / 4
+        ):
             break
         for k in GIRTHS:
             if k in target:
                 s[k] *= target[k] / m[k]  # girth ~ proportional to its factor
-    err = {k: m[k] - target[k] for k in target}
+        if "waist_height" in target:  # the narrowest section follows the waist knot, roughly
+            w.y_to[2] -= float(np.clip(err["waist_height"], -0.03, 0.03))
+    m["waist_height"] = m["waist_y"] - m["floor_y"]
+    err = {k: m[k] - target[k] for k in exact}
     bad = [k for k, v in err.items() if abs(v) > tol]
+    if "waist_height" in target and abs(m["waist_height"] - target["waist_height"]) > WAIST_HEIGHT_TOL:
+        bad.append("waist_height")
     if bad:
         raise ValueError(
             "the warp cannot reach "

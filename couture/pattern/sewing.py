@@ -1108,18 +1108,23 @@ _FS_GIRTHS = (("bust_girth", ("chest", "highBust")), ("waist_girth", ("waist",))
 def fs_measurements(meas: dict, source: str = "measurements") -> dict[str, float]:
     """ISO 8559-1 measurements [m] of a FreeSewing measurement set ({name: mm}):
     bust girth from chest (or highBust), waist girth from waist, hip girth from
-    seat (or hips), height, inseam; those the set has (PatternError when fewer
+    seat (or hips), height, inseam, waist height from waistToFloor; those the
+    set has (PatternError when fewer
     than two of the girths and height)."""
     if not isinstance(meas, dict):
         raise PatternError(source, "a measurement set is a JSON object of {name: millimetres}")
     want: dict[str, float] = {}
-    for key, fs_names in _FS_GIRTHS + (("height", ("height",)), ("inseam", ("inseam",))):
+    for key, fs_names in _FS_GIRTHS + (
+        ("height", ("height",)),
+        ("inseam", ("inseam",)),
+        ("waist_height", ("waistToFloor",)),
+    ):
         for n in fs_names:
             v = meas.get(n)
             if isinstance(v, (int, float)) and math.isfinite(v) and v > 0:
                 want[key] = float(v) / 1000.0
                 break
-    if len([k for k in want if k != "inseam"]) < 2:
+    if len([k for k in want if k not in ("inseam", "waist_height")]) < 2:
         raise PatternError(
             source, "needs at least two of chest, waist, seat (or hips), height [mm] (FreeSewing's names)"
         )
@@ -1129,7 +1134,7 @@ def fs_measurements(meas: dict, source: str = "measurements") -> dict[str, float
 def _nearest(want: dict[str, float]) -> tuple[str, float]:
     from couture.bodies import measured, shipped_names
 
-    keys = [k for k in want if k != "inseam"]
+    keys = [k for k in want if k not in ("inseam", "waist_height")]
     best, best_d = "default", math.inf
     for name in shipped_names():
         m = measured(name)
@@ -1146,7 +1151,7 @@ def body_for_measurements(meas: dict, source: str = "measurements") -> tuple[str
     (its name, a line saying how near). The set's own body:
     :func:`body_of_measurements`."""
     want = fs_measurements(meas, source)
-    keys = sorted(k for k in want if k != "inseam")
+    keys = sorted(k for k in want if k not in ("inseam", "waist_height"))
     best, best_d = _nearest(want)
     return best, f"nearest shipped body {best!r} (rms difference {best_d * 100:.1f} cm over {', '.join(keys)})"
 
@@ -1165,7 +1170,7 @@ def body_of_measurements(meas: dict, source: str = "measurements", name: str = "
     from couture import bodies
 
     want = fs_measurements(meas, source)
-    keys = sorted(k for k in want if k != "inseam")
+    keys = sorted(k for k in want if k not in ("inseam", "waist_height"))
     best, best_d = _nearest(want)
     if best_d <= EXACT_BODY_RMS:
         return Body(name=best), (
@@ -1178,6 +1183,7 @@ def body_of_measurements(meas: dict, source: str = "measurements", name: str = "
     try:
         bodies.use(body)
         got = bodies.measured(name)
+        got["waist_height"] = got["waist_y"] - got["floor_y"]
         rec = bodies.custom_record(name)
     except ValueError as e:
         raise PatternError(source, f"no body for these measurements: {e}") from None
