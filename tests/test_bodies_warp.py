@@ -161,7 +161,7 @@ def test_design_of_a_warped_body_round_trips_and_builds_a_model(tmp_path, monkey
     drafted = validate(again)
     folder = bodies.custom_dir("cisMaleAdult46")
     assert folder.parent == tmp_path / "bodies"
-    assert {p.name for p in folder.iterdir()} >= {"body.obj", "body.json", "sections.npz"}
+    assert {p.name for p in folder.iterdir()} >= {"body.obj", "body.json", f"sections_v{bodies.SECTIONS_VERSION}.npz"}
     m = bodies.measured("cisMaleAdult46")
     assert abs(m["waist_girth"] - want["waist_girth"]) <= 0.002
     # the trousers' tops sit at the warped body's own waist, not the template's
@@ -227,3 +227,33 @@ def test_bodies_make_warp_writes_a_body(tmp_path, monkeypatch, capsys):
     assert "warp" in rec["method"]
     assert msgspec.json.decode(msgspec.json.encode(rec))["measured"]["height"] == pytest.approx(1.80, abs=0.002)
     assert "tall" not in bodies.names()  # written elsewhere (--out): the shipped bodies are untouched
+
+
+def test_sleeves_follow_the_warped_bodys_arms(tmp_path, monkeypatch):
+    """A T-shirt's sleeves are placed round the warped body's arms, which sit
+    higher and further out than the default's: each sleeve moves by its arm's
+    offset (the arm table's frame, couture.pattern.sections), and the shipped
+    bodies' tables keep the default's frames."""
+    from couture.pattern.imported import read_pattern
+    from couture.pattern.sections import frames, sections
+    from couture.pattern.sewing import build_design
+    from couture.pattern.validate import validate
+    from couture.remesh.meshing import mesh_pattern
+
+    monkeypatch.setenv("COUTURE_CACHE", str(tmp_path))
+    for shipped in ("default", "XL"):
+        assert np.allclose(sections(shipped)["left_arm"].origin, frames()["left_arm"][0])
+    pieces = read_pattern(FS / "teagan_cisFemaleAdult42.svg")
+    body = Body(name="cisFemaleAdult42", measurements=_fs("cisFemaleAdult42"))
+    centres = {}
+    for b in (Body(name="default"), body):
+        design, _ = build_design(pieces, body=b)
+        mesh = mesh_pattern(validate(design), 600, level="coarse").mesh
+        for side in ("left", "right"):
+            tri = mesh.tris[mesh.tri_panel == mesh.panel_names.index(f"sleeve_{side}")]
+            centres[b.name, side] = mesh.x0[np.unique(tri)].mean(axis=0)
+    for side, arm in (("left", "left_arm"), ("right", "right_arm")):
+        offset = sections("cisFemaleAdult42")[arm].origin - frames()[arm][0]
+        assert offset[1] > 0.03 and abs(offset[0]) > 0.03  # this body's arms are higher and further out
+        moved = centres["cisFemaleAdult42", side] - centres["default", side]
+        assert np.linalg.norm(moved - offset) < 0.02, (side, moved, offset)

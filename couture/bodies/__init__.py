@@ -84,6 +84,8 @@ def names() -> tuple[str, ...]:
 
 WARP_VERSION = 1
 """bump when couture.bodies.warp changes the bodies it makes (a new cache folder)"""
+SECTIONS_VERSION = 2
+"""bump when couture.pattern.sections changes the tables it measures (a new file in the folder)"""
 
 
 def _valid_name(name: str) -> bool:
@@ -128,7 +130,7 @@ def cache_root() -> Path:
 def custom_dir(name: str) -> Path:
     """The cache folder of a registered body (built on first call): body.obj,
     body.json (requested and measured measurements, the warp's record) and,
-    once the pattern asks, sections.npz."""
+    once the pattern asks, sections_v<SECTIONS_VERSION>.npz."""
     meas = _CUSTOM[check_name(name)]
     key = json.dumps({"name": name, "measurements": meas, "warp": WARP_VERSION}, sort_keys=True)
     folder = cache_root() / f"{name}-{hashlib.sha256(key.encode()).hexdigest()[:16]}"
@@ -190,7 +192,7 @@ def sections_path(name: str = "default") -> Path:
     """Where a body's placement sections are (a registered body's are written
     there on first use by couture.pattern.sections)."""
     if check_name(name) in _CUSTOM:
-        return custom_dir(name) / "sections.npz"
+        return custom_dir(name) / f"sections_v{SECTIONS_VERSION}.npz"
     return DEFAULT_SECTIONS if name == "default" else BODIES_DIR / f"{name}.sections.npz"
 
 
