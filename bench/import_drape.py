@@ -38,6 +38,7 @@ def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 def measure(design_path: Path, drape_dir: Path) -> tuple[dict, object, np.ndarray, object]:
     """(the row, the fine mesh, the draped positions, the drafted pattern) of one drape."""
+    from couture import bodies
     from couture.cloth.body import load_mannequin_sdf
     from couture.pattern.io import load_design
     from couture.pattern.validate import validate
@@ -50,7 +51,7 @@ def measure(design_path: Path, drape_dir: Path) -> tuple[dict, object, np.ndarra
     if x.shape[0] != mesh.n_vertices or not np.array_equal(tris, np.asarray(mesh.tris)):
         raise ValueError(f"{drape_dir}: the drape's mesh ({x.shape[0]} vertices) is not the design's fine mesh")
     info = json.loads((drape_dir / "drape.json").read_text())
-    sdf = load_mannequin_sdf(verbose=False, name=design.body.name)
+    sdf = load_mannequin_sdf(verbose=False, name=bodies.use(design.body))
     phi = sdf.phi_grad(x)[0]
     seams = [s for s in design.strokes if s.kind == "seam"]
     row = {

@@ -304,7 +304,9 @@ def _parser() -> argparse.ArgumentParser:
         default=None,
         metavar="MEASUREMENTS.json",
         help="the measurement set the pattern was drafted for (FreeSewing names, mm: chest, waist, seat/hips, "
-        "height): the design takes the nearest shipped body",
+        "height, inseam): the design takes the nearest shipped body, or, when that is more than 1 cm rms off, "
+        "a body of the set's own measurements named after the file (the nearest warped to them: "
+        "couture.bodies.warp; docs/bodies.md)",
     )
     im.add_argument(
         "--seam-allowance",
@@ -513,6 +515,13 @@ def _parser() -> argparse.ArgumentParser:
         help="a body of your own measurements [m] (stature, bust, waist and hip girths, inside leg), "
         "named by the one NAME given",
     )
+    bm.add_argument(
+        "--method",
+        choices=("auto", "anny", "warp"),
+        default="auto",
+        help="anny: fit the Anny body model (couture[bodies]); warp: deform the nearest shipped body to "
+        "--measure (couture.bodies.warp, no extra); auto (default): anny when installed, else warp",
+    )
 
     bp = sub.add_parser(
         "bench", help="benchmarks: NAME writes NAME.json (and its plots) to --out DIR (default bench/results/)"
@@ -619,18 +628,20 @@ def import_pattern(args: argparse.Namespace) -> int:
     from couture.pattern.errors import PatternError
     from couture.pattern.imported import read_pattern
     from couture.pattern.io import design_to_json
-    from couture.pattern.sewing import body_for_measurements, build_design
+    from couture.pattern.sewing import body_of_measurements, build_design
     from couture.pattern.validate import validate
+    from schemas.design import Body
 
     out = Path(args.out)
     try:
-        body, body_note = "default", ""
+        body: str | Body = "default"
+        body_note = ""
         if args.body:
             try:
                 meas = json.loads(Path(args.body).read_text())
             except (OSError, ValueError) as e:
                 raise PatternError(args.body, f"not a measurement set (JSON): {e}") from None
-            body, body_note = body_for_measurements(meas, args.body)
+            body, body_note = body_of_measurements(meas, args.body, name=Path(args.body).stem)
         pieces = read_pattern(args.file, units=args.units, seam_allowance=args.seam_allowance)
         design, rep = build_design(
             pieces,
@@ -680,7 +691,7 @@ def bodies_command(args: argparse.Namespace) -> int:
     from couture.bodies.measure import MEASURES
 
     if args.bodies_cmd == "make":
-        from couture.bodies.make import make_graded
+        from couture.bodies.make import anny_available, make_graded, make_warped
         from couture.pattern.sections import write_body_sections
 
         table = None
@@ -688,6 +699,16 @@ def bodies_command(args: argparse.Namespace) -> int:
             if len(args.names) != 1:
                 raise ValueError("--measure makes one body: give exactly one NAME")
             table = {args.names[0]: dict(zip(MEASURES, args.measure, strict=True))}
+        method = args.method if args.method != "auto" else ("anny" if anny_available() else "warp")
+        if method == "warp":
+            if table is None:
+                raise ValueError("--method warp makes a body of --measure: give one NAME and --measure")
+            if args.method == "auto":
+                print("Anny is not installed: warping the nearest shipped body (couture.bodies.warp)", file=sys.stderr)
+            name = args.names[0]
+            make_warped(Path(args.out) if args.out else bodies.BODIES_DIR, name, table[name], write_body_sections)
+            bodies.index.cache_clear()
+            return bodies_command(argparse.Namespace(bodies_cmd="list", json=getattr(args, "json", False)))
         make_graded(
             Path(args.out) if args.out else bodies.BODIES_DIR,
             args.names or None,
@@ -705,7 +726,8 @@ def bodies_command(args: argparse.Namespace) -> int:
         cells = []
         for k in MEASURES:
             m = 100 * r["measured"][k]
-            cells.append(f"{m:.1f}" if r["requested"] is None else f"{100 * r['requested'][k]:.1f} / {m:.1f}")
+            req = (r["requested"] or {}).get(k)
+            cells.append(f"{m:.1f}" if req is None else f"{100 * req:.1f} / {m:.1f}")
         print(f"{r['name']:8s}" + "".join(f"{c:>22s}" for c in cells))
     return 0
 

@@ -88,7 +88,13 @@ class Body(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
 
     name: str = "default"
     """'default' is the embedded A-pose mannequin; 'XS', 'S', 'M', 'L', 'XL' the
-    graded bodies shipped with couture (``couture bodies list``)"""
+    graded bodies shipped with couture (``couture bodies list``); with
+    ``measurements``, a name of its own (e.g. a measurement set's)"""
+    measurements: dict[str, float] | None = None
+    """the body's own ISO 8559-1 measurements [m] ('height', 'bust_girth',
+    'waist_girth', 'hip_girth', 'inseam', 'waist_height'; any subset with a girth): every
+    process builds the same body from them (``couture.bodies.warp``, cached);
+    None: ``name`` is a shipped body"""
 
 
 class SceneFlags(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):

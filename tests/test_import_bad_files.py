@@ -109,6 +109,7 @@ def test_cli_exit_status_in_a_real_process(tmp_path):
     import os
 
     env = {**os.environ, **env, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    env["COUTURE_CACHE"] = str(tmp_path / "cache")  # the body of the set is built there
     bad = tmp_path / "bad.svg"
     bad.write_text("<svg xmlns='http://www.w3.org/2000/svg'><g><path d='M 0 0 L 10 0 L 10 10'/></g></svg>")
     r = subprocess.run(
@@ -131,11 +132,13 @@ def test_cli_exit_status_in_a_real_process(tmp_path):
     )
     assert r.returncode == 0, r.stderr
     assert "confidence" in r.stdout and "free edges" in r.stdout
-    assert "nearest shipped body" in r.stdout
+    # size 42 (waist 90 cm, seat 115 cm) lies beyond every shipped body: the design names a body of its own
+    assert "the set's own body 'cisFemaleAdult42'" in r.stdout and "nearest shipped body 'XL'" in r.stdout
     from couture.pattern.io import load_design
 
     d = load_design(tmp_path / "d.json")
-    assert d.body.name in ("M", "L", "XL")  # FreeSewing's size 42 (seat 108 cm) is one of the bigger bodies
+    assert d.body.name == "cisFemaleAdult42" and d.body.measurements is not None
+    assert d.body.measurements["waist_girth"] == 0.9 and d.body.measurements["hip_girth"] == 1.153
     assert len(d.pieces) == 4  # front, back left and right, waistband
 
 

@@ -79,7 +79,7 @@ def _check_tightening(design: Design, target: Target, x_src: np.ndarray, mesh: G
     from couture.solvers.service import scene_from_design
 
     scene = scene_from_design(design)
-    name = design.body.name  # as scene_from_design names it: 'default' is the mannequin
+    name = design.body.name  # as scene_from_design names it (and registers a body of measurements)
     body = load_mannequin_sdf(verbose=False, name=name)
     y0 = target.info["y_loop"]
     room = waist_room(x_src, mesh.tris, y0, body, scene.contact_offset)

@@ -204,9 +204,10 @@ def body_for(design):
     """The scene's body as a signed distance callable, or None (no body)."""
     if not design.scene.body:
         return None
+    from couture import bodies
     from couture.cloth.body import load_mannequin_sdf
 
-    sdf = load_mannequin_sdf(verbose=False, name=design.body.name)
+    sdf = load_mannequin_sdf(verbose=False, name=bodies.use(design.body))
     return lambda points: sdf.phi_grad(np.asarray(points, np.float64))[0]
 
 

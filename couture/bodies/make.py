@@ -50,6 +50,46 @@ PARAMS = PHENOTYPES + LOCAL_CHANGES
 TOPOLOGY = "notoes"
 
 
+def anny_available() -> bool:
+    """Whether the optional extra (anny and PyTorch) is installed."""
+    import importlib.util
+
+    return all(importlib.util.find_spec(m) is not None for m in ("anny", "torch"))
+
+
+def make_warped(
+    out: Path, name: str, target: dict[str, float], write_sections: Callable[[Path, Path], None] | None = None
+) -> dict:
+    """Write the body ``name`` of measurements ``target`` [m] made without Anny
+    (couture.bodies.warp: the nearest shipped body warped to them) to ``out``:
+    <name>.obj, <name>.sections.npz (``write_sections``) and its bodies.json entry."""
+    from couture.bodies.warp import warp_body
+
+    if name == "default" or not name.replace("_", "").replace("-", "").isalnum():
+        raise ValueError(f"body name {name!r}: use letters, digits, '-' or '_', and not 'default'")
+    r = warp_body(target)
+    out.mkdir(parents=True, exist_ok=True)
+    obj = out / f"{name}.obj"
+    write_obj(
+        obj,
+        r.vertices,
+        r.faces,
+        f"couture body {name!r}: the shipped body {r.template!r} warped to {target} [m] by couture.bodies.warp"
+        "\n(numpy/scipy; not a body scan); metres, y up, facing +z.",
+    )
+    if write_sections is not None:
+        write_sections(obj, out / f"{name}.sections.npz")
+    index_path = out / "bodies.json"
+    index = json.loads(index_path.read_text()) if index_path.exists() else {"bodies": {}}
+    index["bodies"][name] = {
+        "requested": target,
+        "measured": {k: round(v, 5) for k, v in r.measured.items()},
+        "method": f"warp of {r.template!r} (couture.bodies.warp), {r.iterations} iterations, {r.seconds:.1f} s",
+    }
+    index_path.write_text(json.dumps(index, indent=2) + "\n")
+    return index
+
+
 def _require():
     try:
         import anny

@@ -111,7 +111,7 @@ class Slicer:
         """Top of the lowest run of sections above the crotch that hold three or
         more loops (the torso and the two arms apart), to 1 mm."""
         y, seen = crotch_y + 0.05, False
-        stop = crotch_y + 0.6 * (top_y - crotch_y)
+        stop = crotch_y + 0.7 * (top_y - crotch_y)  # long trunks (warped bodies) reach 0.6
         while y < stop:
             n = len(self.loops(y))
             if n >= 3:

@@ -95,7 +95,7 @@ def body_options(name: str) -> dict[str, float]:
     bodies.check_name(name)
     if name == "default":
         return {}
-    m = next(r for r in bodies.table() if r["name"] == name)["measured"]
+    m = bodies.measured(name)
     out = {
         "bust_girth": m["bust_girth"],
         "waist_girth": m["waist_girth"],

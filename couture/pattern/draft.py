@@ -241,7 +241,7 @@ def draft(design: Design, spacing: float = SPACING) -> DraftedPattern:
 def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[DraftedPattern, DraftContext]:
     from couture.pattern.limits import check_body
 
-    check_body(design.body.name)  # placement reads the body's sections
+    check_body(design.body)  # placement reads the body's sections
     sd = sloper_of(design)
     params = resolve(sd.options, sloper_params(design))
     topo = tuple(sorted((o.name, params[o.name]) for o in sd.options if o.integer))

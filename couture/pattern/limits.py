@@ -24,7 +24,7 @@ import math
 from dataclasses import dataclass
 
 from couture.pattern.errors import PatternError
-from schemas.design import Design, Fabric, Resolution
+from schemas.design import Body, Design, Fabric, Resolution
 
 
 @dataclass(frozen=True)
@@ -87,11 +87,20 @@ RESOLUTION_LIMITS: dict[str, Limit] = {
 """Resolution field -> allowed target vertex counts (a few hundred to the largest meshes measured, 40k, x6)"""
 
 
-def check_body(name: str) -> None:
-    """A body a design may name ('default' or a graded size of couture.bodies);
-    PatternError naming it and the bodies otherwise."""
+def check_body(body: Body | str) -> None:
+    """A body a design may name ('default' or a graded size of couture.bodies,
+    or any name with its own measurements, which this registers:
+    couture.bodies.use); PatternError naming the field and the bodies otherwise."""
     from couture import bodies
 
+    if not isinstance(body, str) and body.measurements:
+        try:
+            bodies.use(body)
+        except ValueError as e:
+            field, _, msg = str(e).partition(": ")
+            raise PatternError(field if field.startswith("body.") else "body.measurements", msg or str(e)) from None
+        return
+    name = body if isinstance(body, str) else body.name
     if name not in bodies.names():
         raise PatternError("body.name", f"unknown mannequin {name!r}; mannequins are {list(bodies.names())}")
 
@@ -148,11 +157,11 @@ def check_values(design: Design) -> None:
     in their physical ranges; raises PatternError naming the field."""
     check_fabrics(design)
     check_resolution(design.resolution)
-    check_body(design.body.name)
+    check_body(design.body)
 
 
 def check_simulation_values(design: Design) -> None:
     """What a solver needs of a design (fabric and body), checked before it
     builds a cloth model; raises PatternError naming the field."""
     check_fabrics(design)
-    check_body(design.body.name)
+    check_body(design.body)

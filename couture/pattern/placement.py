@@ -181,6 +181,12 @@ def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str,
     f = f / np.linalg.norm(f)
     b = np.cross(a, f)
     sec = sections(body)[ring.section] if getattr(ring, "section", None) else None
+    if sec is not None and ring.section.endswith("_arm"):
+        # an arm's table may sit off the default's frame (a body whose arms moved:
+        # couture.pattern.sections.measure_sections): the ring moves with it
+        from couture.pattern.sections import frames
+
+        origin = origin + (sec.origin - frames()[ring.section][0])
     K = 64
     if sec is not None:
         K = sec.radius.shape[1]

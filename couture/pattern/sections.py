@@ -71,6 +71,11 @@ def _arm_split(y: np.ndarray) -> np.ndarray:
     return np.interp(y, [0.18, 0.20, 0.30, 0.38, 0.40, 0.9], [0.30, 0.26, 0.21, 0.19, 0.26, 0.26])
 
 
+ARM_OFFSET_BELOW_SHOULDER = 0.12
+"""[m] a body's arm frame moves by the mean offset from the default of its arm's
+vertices within this height below the default's shoulder point"""
+
+
 def frames() -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """(origin, axis, ref) of each table: torso (vertical, front ref), left/right
     arm (the sleeve placement axis), left/right leg (the leg axis)."""
@@ -122,18 +127,32 @@ def measure_sections(path: str | None = None) -> dict[str, Section]:
 
     if path is None:
         path = str(Path(__file__).resolve().parents[2] / M.MANNEQUIN_PATH)
+    default = str(Path(__file__).resolve().parents[2] / M.MANNEQUIN_PATH)
     V = np.asarray(trimesh.load_mesh(path, process=False).vertices)
-    split = _arm_split(V[:, 1])
+    V0 = V if path == default else np.asarray(trimesh.load_mesh(default, process=False).vertices)
+    # a body of the default's template topology (every body of couture.bodies) is cut
+    # into parts where the default is, vertex for vertex: a warped body's trunk may
+    # reach past the default's arm split, and its arms sit higher
+    R = V0 if V0.shape == V.shape else V
+    split = _arm_split(R[:, 1])
     parts = {
-        "torso": np.abs(V[:, 0]) < split,
-        "left_arm": (V[:, 0] >= split) & (V[:, 1] < 0.46),
-        "right_arm": (V[:, 0] <= -split) & (V[:, 1] < 0.46),
+        "torso": np.abs(R[:, 0]) < split,
+        "left_arm": (R[:, 0] >= split) & (R[:, 1] < 0.46),
+        "right_arm": (R[:, 0] <= -split) & (R[:, 1] < 0.46),
         # a leg with its half of the pelvis (the trouser panels of one leg)
-        "left_leg": (V[:, 0] >= 0.0) & (np.abs(V[:, 0]) < split),
-        "right_leg": (V[:, 0] <= 0.0) & (np.abs(V[:, 0]) < split),
+        "left_leg": (R[:, 0] >= 0.0) & (np.abs(R[:, 0]) < split),
+        "right_leg": (R[:, 0] <= 0.0) & (np.abs(R[:, 0]) < split),
     }
+    fr = frames()
+    if R is V0 and path != default:
+        for arm in ("left_arm", "right_arm"):
+            # the arm's frame follows the body's upper arm (where a sleeve's cap sits);
+            # couture.pattern.placement moves the arm rings by the same offset
+            o, a, f = fr[arm]
+            near = parts[arm] & (V0[:, 1] > o[1] - ARM_OFFSET_BELOW_SHOULDER)
+            fr[arm] = (o + (V[near] - V0[near]).mean(axis=0), a, f)
     out = {}
-    for name, (o, a, f) in frames().items():
+    for name, (o, a, f) in fr.items():
         b = np.cross(a, f)
         P = V[parts[name]] - o
         t = P @ a
@@ -169,10 +188,18 @@ def write_body_sections(obj: Path, path: Path) -> None:
 def sections(body: str = "default") -> dict[str, Section]:
     """The stored tables of a body ('default': regenerate with
     ``python -m couture.pattern.sections``; a graded body's are written by
-    ``couture bodies make``)."""
+    ``couture bodies make``; a body of measurements's are measured here on
+    first use and cached beside it)."""
+    import os
+
     from couture import bodies
 
-    with np.load(bodies.sections_path(body)) as z:
+    path = bodies.sections_path(body)
+    if not path.exists():
+        tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
+        write_body_sections(bodies.obj_path(body), tmp)
+        tmp.replace(path)
+    with np.load(path) as z:
         names = sorted({k.split(".")[0] for k in z.files})
         return {
             n: Section(

@@ -979,7 +979,7 @@ def fronts_by_neckline(pieces: list[ImportedPiece], notes: list[str]) -> list[Im
 def build_design(
     pieces: list[ImportedPiece],
     *,
-    body: str = "default",
+    body: str | Body = "default",
     landmark: str | None = None,
     exclude: tuple[str, ...] = (),
     min_confidence: float = 0.5,
@@ -990,9 +990,16 @@ def build_design(
     order with its top at the body's waist (``landmark`` 'waist') or
     shoulder ('shoulder'; default: 'shoulder' for a top, else 'waist').
     Pieces named in ``exclude`` are left out; pieces that are neither torso
-    pieces nor placed lie flat in front of the body."""
+    pieces nor placed lie flat in front of the body. ``body``: a body's name,
+    or a Body (one with measurements: couture.bodies.use)."""
+    from couture import bodies
     from couture.bodies import measured
 
+    body_msg = body if isinstance(body, Body) else Body(name=body)
+    try:
+        body = bodies.use(body_msg)
+    except ValueError as e:
+        raise PatternError("body", str(e)) from None
     kept = [p for p in pieces if p.name not in exclude]
     if not kept:
         raise PatternError("pieces", f"no pieces left to import (all of {[p.name for p in pieces]} excluded)")
@@ -1079,7 +1086,7 @@ def build_design(
         sloper=Sloper(kind="none"),
         strokes=strokes,
         pieces=out_pieces,
-        body=Body(name=body),
+        body=body_msg,
         fabric=Fabric(name="woven", stretch_stiffness=stretch_stiffness),
     )
     report = ImportReport(
@@ -1098,31 +1105,90 @@ def build_design(
 _FS_GIRTHS = (("bust_girth", ("chest", "highBust")), ("waist_girth", ("waist",)), ("hip_girth", ("seat", "hips")))
 
 
-def body_for_measurements(meas: dict, source: str = "measurements") -> tuple[str, str]:
-    """The shipped body (``couture bodies list``) nearest a FreeSewing
-    measurement set ({name: mm}: chest, waist, seat or hips, height), by the
-    root mean square difference of bust, waist and hip girths and stature;
-    (its name, a line saying how near). A set of your own exactly:
-    ``couture bodies make NAME --measure ...``."""
-    from couture.bodies import measured, names
-
+def fs_measurements(meas: dict, source: str = "measurements") -> dict[str, float]:
+    """ISO 8559-1 measurements [m] of a FreeSewing measurement set ({name: mm}):
+    bust girth from chest (or highBust), waist girth from waist, hip girth from
+    seat (or hips), height, inseam, waist height from waistToFloor; those the
+    set has (PatternError when fewer
+    than two of the girths and height)."""
     if not isinstance(meas, dict):
         raise PatternError(source, "a measurement set is a JSON object of {name: millimetres}")
     want: dict[str, float] = {}
-    for key, fs_names in _FS_GIRTHS + (("height", ("height",)),):
+    for key, fs_names in _FS_GIRTHS + (
+        ("height", ("height",)),
+        ("inseam", ("inseam",)),
+        ("waist_height", ("waistToFloor",)),
+    ):
         for n in fs_names:
             v = meas.get(n)
             if isinstance(v, (int, float)) and math.isfinite(v) and v > 0:
                 want[key] = float(v) / 1000.0
                 break
-    if len(want) < 2:
+    if len([k for k in want if k not in ("inseam", "waist_height")]) < 2:
         raise PatternError(
             source, "needs at least two of chest, waist, seat (or hips), height [mm] (FreeSewing's names)"
         )
+    return want
+
+
+def _nearest(want: dict[str, float]) -> tuple[str, float]:
+    from couture.bodies import measured, shipped_names
+
+    keys = [k for k in want if k not in ("inseam", "waist_height")]
     best, best_d = "default", math.inf
-    for name in names():
+    for name in shipped_names():
         m = measured(name)
-        d = math.sqrt(sum((m[k] - v) ** 2 for k, v in want.items()) / len(want))
+        d = math.sqrt(sum((m[k] - want[k]) ** 2 for k in keys) / len(keys))
         if d < best_d:
             best, best_d = name, d
-    return best, f"nearest shipped body {best!r} (rms difference {best_d * 100:.1f} cm over {', '.join(sorted(want))})"
+    return best, best_d
+
+
+def body_for_measurements(meas: dict, source: str = "measurements") -> tuple[str, str]:
+    """The shipped body (``couture bodies list``) nearest a FreeSewing
+    measurement set ({name: mm}: chest, waist, seat or hips, height), by the
+    root mean square difference of bust, waist and hip girths and stature;
+    (its name, a line saying how near). The set's own body:
+    :func:`body_of_measurements`."""
+    want = fs_measurements(meas, source)
+    keys = sorted(k for k in want if k not in ("inseam", "waist_height"))
+    best, best_d = _nearest(want)
+    return best, f"nearest shipped body {best!r} (rms difference {best_d * 100:.1f} cm over {', '.join(keys)})"
+
+
+EXACT_BODY_RMS = 0.01
+"""[m] a measurement set further than this (rms over its girths and stature)
+from every shipped body gets a body of its own (:func:`body_of_measurements`)"""
+
+
+def body_of_measurements(meas: dict, source: str = "measurements", name: str = "") -> tuple[Body, str]:
+    """The body a FreeSewing measurement set's pattern was drafted for: the
+    nearest shipped body when it is within ``EXACT_BODY_RMS``, else a body of
+    the set's own measurements named ``name`` (the shipped one warped to them,
+    couture.bodies.warp, built now and cached); (the design's Body, a line
+    saying which and how near, with the measured errors)."""
+    from couture import bodies
+
+    want = fs_measurements(meas, source)
+    keys = sorted(k for k in want if k not in ("inseam", "waist_height"))
+    best, best_d = _nearest(want)
+    if best_d <= EXACT_BODY_RMS:
+        return Body(name=best), (
+            f"nearest shipped body {best!r} (rms difference {best_d * 100:.1f} cm over {', '.join(keys)})"
+        )
+    name = re.sub(r"[^A-Za-z0-9_-]", "_", name or "measured")[:64]
+    if name in bodies.shipped_names():
+        name += "_set"
+    body = Body(name=name, measurements={k: round(v, 4) for k, v in want.items()})
+    try:
+        bodies.use(body)
+        got = bodies.measured(name)
+        got["waist_height"] = got["waist_y"] - got["floor_y"]
+        rec = bodies.custom_record(name)
+    except ValueError as e:
+        raise PatternError(source, f"no body for these measurements: {e}") from None
+    errs = ", ".join(f"{k} {1000 * (got[k] - v):+.1f} mm" for k, v in want.items())
+    return body, (
+        f"the set's own body {name!r} ({rec['method']}; measured minus requested: {errs}); "
+        f"the nearest shipped body {best!r} is {best_d * 100:.1f} cm rms off over {', '.join(keys)}"
+    )

@@ -45,6 +45,7 @@ from typing import Callable
 
 import numpy as np
 
+from couture import bodies
 from couture.cloth.material import FabricError, check_fabric, check_panel_names, reference_lame
 from couture.cloth.model import CONTACT_STIFFNESS_PER_MU, SEAM_STIFFNESS_PER_MU, ClothModel, Scene
 from couture.designs import Matched, MeshArrival, MeshMatcher, MeshOutcome, Verdict, judge
@@ -97,7 +98,7 @@ def scene_from_design(design: Design) -> Scene:
         if not (math.isfinite(v) and v > 0):
             raise ValueError(f"scene.{name}: {v!r} is not a positive finite factor")
     # the default body keeps its old name; a graded body goes by its own (couture.bodies)
-    body = ("mannequin" if design.body.name == "default" else design.body.name) if flags.body else None
+    body = ("mannequin" if design.body.name == "default" else bodies.use(design.body)) if flags.body else None
     mu, _ = reference_lame(design.fabric)  # the model's own mu (isotropic: the fabric's)
     # a factor of 1 leaves the model's own default in charge (None)
     seam = None if flags.seam_stiffness_scale == 1.0 else flags.seam_stiffness_scale * SEAM_STIFFNESS_PER_MU * mu

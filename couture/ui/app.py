@@ -394,7 +394,9 @@ class CoutureUI:
         self.view3d.set_fabric(design.fabric, design.scene.contact_stiffness_scale, design.panel_fabrics)
         shown = self.view3d.body_name
         try:
-            self.view3d.set_body(design.body.name)
+            from couture import bodies
+
+            self.view3d.set_body(bodies.use(design.body))
         except ValueError:
             log.warning("unknown body %r: the view keeps %r", design.body.name, self.view3d.body_name)
         if self.view3d.body_name != shown:  # a point picked on the old body is no target
