@@ -211,7 +211,9 @@ class CoutureUI:
         ]
         for t in self._threads:
             t.start()
-        self.drafter.slot.put(self.design)
+        # the initial design as any later one: its body on the mannequin (an imported
+        # design names the shipped body nearest its measurements), its controls, its draft
+        self._adopt(self.design)
 
     def stop(self) -> None:
         self._stop.set()
