@@ -170,7 +170,8 @@ def _pattern_to_page(page, view2d, p_display: np.ndarray, z: float = 0.0) -> np.
     from couture.ui.pattern_view import CAMERA_FOV, fit_camera
 
     box = _pattern_canvas(page)
-    (cx, cy, dist), _ = fit_camera(*view2d.bounds(), box["width"] / box["height"])
+    lo, hi = view2d.bounds()
+    (cx, cy, dist), _ = fit_camera(lo, hi, box["width"] / box["height"])
     dist -= z
     f = 0.5 * box["height"] / np.tan(0.5 * CAMERA_FOV)
     return np.array(
