@@ -176,6 +176,16 @@ class Piece(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     source: str = ""
     """where it came from: the file and the piece's name there (and 'mirrored')"""
     placement: PiecePlacement = msgspec.field(default_factory=PiecePlacement)
+    mirror_of: str = ""
+    """the other piece of a 'Cut 2' pair (one piece cut twice, once face down),
+    '' for none; both pieces name each other. This piece is then the mirror
+    image of that one: the same number k of outline points, point ``j`` here
+    at (c - x, y) of its point ``(mirror_index - j) mod k`` (c fixed), corners
+    likewise; an edit of a point or curve of either applies mirrored to both
+    (``couture.pattern.pieces``). An optional field added within
+    ``couture/design/v1``: older designs have none (each piece edits alone)"""
+    mirror_index: int = 0
+    """which point of ``mirror_of`` point 0 of this piece mirrors (the same number on both pieces)"""
 
 
 class Design(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):

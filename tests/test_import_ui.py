@@ -47,3 +47,44 @@ def test_ui_shows_and_sews_imported_pieces(tmp_path):
         assert got[-1].pieces == design.pieces
     finally:
         ui.stop()
+
+
+def test_ui_seams_folder_shows_confidence_and_drops_or_confirms_a_suggestion(tmp_path):
+    """The pattern view's Seams folder lists an imported design's seams with
+    the importer's confidence, least sure first; Drop removes the chosen
+    seam (its segments become free: one seam fewer drafted), Confirm marks
+    it confirmed (confidence 1, still sewn). Refusals name the seam."""
+    import pytest
+
+    from couture.pattern.errors import PatternError
+    from couture.pattern.seam_review import drop_seam, seam_rows
+
+    design, rep = build_design(read_pattern(VAL / "TShirt_test_astm.dxf"))
+    rows = seam_rows(design)
+    assert len(rows) == len(rep.seams) > 5
+    assert [r.confidence for r in rows] == sorted(r.confidence for r in rows)  # least sure first
+    ui = CoutureUI(UIConfig(port=free_port(), export_dir=tmp_path, show_body=False, draft_locally=False))
+    ui.start()
+    try:
+        ui.set_design(design)
+        got: list = []
+        ui.on_design_changed = got.append
+        panel = ui.seams
+        first = rows[0]
+        assert f"{first.confidence:.2f} {first.reason}" in panel.table.content
+        assert len(panel.choice.options) == len(rows) and first.a in panel.choice.value
+        n_seams = len(draft(design).seams)
+        panel.act("drop")
+        assert len(got) == 1 and first.stroke_id not in {s.id for s in got[-1].strokes}
+        assert len(draft(got[-1]).seams) == n_seams - 1
+        assert len(panel.choice.options) == len(rows) - 1  # the list follows the committed design
+        second = seam_rows(got[-1])[0]
+        panel.act("confirm")
+        st = next(s for s in got[-1].strokes if s.id == second.stroke_id)
+        assert st.params["confirmed"] is True and st.params["confidence"] == 1.0
+        assert len(draft(got[-1]).seams) == n_seams - 1  # still sewn
+        assert f"| {second.a} + {second.b} | confirmed |" in panel.table.content
+    finally:
+        ui.stop()
+    with pytest.raises(PatternError, match="no seam stroke with that id"):
+        drop_seam(design, "nope")

@@ -252,7 +252,8 @@ def test_couture_export_cli_writes_an_edited_imported_design(tmp_path, penelope)
     """`couture export` (the command, defaults but the formats) of an imported
     design whose piece was edited: every piece comes back from the DXF and the
     SVG with the drafted (edited) sew line to 1e-6 m (the sheet layout moves
-    pieces: compared about their centroids)."""
+    pieces: compared about their centroids). The edited piece is half of a
+    'Cut 2' pair: its twin moved with it, and the pair is one piece cut twice."""
     import subprocess
     import sys
 
@@ -270,11 +271,13 @@ def test_couture_export_cli_writes_an_edited_imported_design(tmp_path, penelope)
     )
     assert r.returncode == 0, r.stderr[-2000:]
     pat = draft(edited)
+    want = sorted(p.name for p in pat.panels if p.name != "back_right")
     for f in ("edited.dxf", "edited.svg"):
         got = {g.name: g for g in read_pattern(tmp_path / "out" / f)}
-        assert sorted(got) == sorted(p.name for p in pat.panels), f
-        for p in pat.panels:
-            S, P = got[p.name].sew, p.outline
-            assert _curve_gap(S - _centroid(S), P - _centroid(P)) < 1e-6, (f, p.name)
-    # back_left and back_right were mirror images; the edit tells them apart
-    assert np.abs(pat.panel("back_left").outline - draft(penelope).panel("back_left").outline).max() > 0.009
+        assert sorted(got) == want, f
+        assert (got["back_left"].cut_count, got["back_left"].mirrored) == (2, True), f
+        for name in want:
+            S, P = got[name].sew, pat.panel(name).outline
+            assert _curve_gap(S - _centroid(S), P - _centroid(P)) < 1e-6, (f, name)
+    for name in ("back_left", "back_right"):  # both halves moved
+        assert np.abs(pat.panel(name).outline - draft(penelope).panel(name).outline).max() > 0.009

@@ -734,3 +734,43 @@ def test_adjust_folder_drag_release_sends_a_request_and_shows_progress(ui):
     assert m.max_iters is None  # the adjust node's settings, those of `couture adjust`
     assert decode(encode(adjust_msg("hem", 0.08, ui.design, "d1", 3)), AdjustMsg).amount == 0.08
     ui.on_design_changed = None
+
+
+def test_a_drape_before_its_mesh_is_shown_when_the_mesh_comes(tmp_path):
+    """A late joiner gets the session's meshes and drapes on separate
+    subscriptions, in any order: a fine drape taken before the fine mesh is
+    held and shown (the page's frame marker set) once that mesh arrives, not
+    dropped (the solve is over: no other drape comes; the marker stayed at
+    data-seq 0 in tests/test_adjust_browser.py runs). A newer drape shown
+    meanwhile wins over the held one."""
+    import dataclasses
+
+    ui = CoutureUI(UIConfig(port=free_port(), export_dir=tmp_path, show_body=False, draft_locally=False))
+    ui.start()
+    try:
+        coarse, _ = demo_sheet(300)
+        fine, _ = demo_sheet(1200)
+        coarse, fine = dataclasses.replace(coarse, level="coarse"), dataclasses.replace(fine, level="fine")
+        assert coarse.n_vertices != fine.n_vertices
+        ui.show_mesh(coarse)
+        ui.show_drape(fine.x0 + [0.0, 0.0, 0.01], "fine", "newton", residual=1e-6, tag="fine drape")
+        time.sleep(0.3)
+        assert ui.frames_pushed == 0 and 'data-seq="0"' in ui.status.frame_html.content
+        ui.show_mesh(fine)
+        assert wait_for(lambda: ui.on_screen is not None and ui.on_screen.tag == "fine drape")
+        assert 'data-seq="1"' in ui.status.frame_html.content
+        np.testing.assert_allclose(ui.view3d.x, fine.x0 + [0.0, 0.0, 0.01])
+        # held, then overtaken: a drape for the mesh on screen is newer, the held one is dropped
+        other, _ = demo_sheet(600)
+        other = dataclasses.replace(other, level="coarse")
+        assert other.n_vertices not in (coarse.n_vertices, fine.n_vertices)
+        ui.show_drape(other.x0, "coarse", "newton", tag="held")
+        time.sleep(0.3)
+        assert ui.renderer.waiting is not None and ui.renderer.waiting.tag == "held"
+        ui.show_drape(fine.x0, "fine", "newton", tag="newer")
+        assert wait_for(lambda: ui.on_screen.tag == "newer")
+        ui.show_mesh(other)
+        time.sleep(0.3)
+        assert ui.on_screen.tag == "newer" and ui.renderer.waiting is None
+    finally:
+        ui.stop()

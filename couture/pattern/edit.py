@@ -25,9 +25,13 @@ Element ids:
   stay), and so do the piece's notches on those runs. A move that makes the
   outline self-intersect is refused, naming the piece and the point. The
   UI's handles are the pieces' corners (:func:`edit_elements`); any point may
-  be edited through the id. Its Jacobian is exact (the weights times the 2x2
-  identity, for the piece's panel only: the other panels stay) when no
-  stroke but a seam names the piece; else the central differences below.
+  be edited through the id. A piece of a 'Cut 2' pair (``Piece.mirror_of``)
+  moves its twin's mirror points with it, x mirrored, so the pair stays one
+  piece cut twice; a curve stroke's control point (``cv:``) likewise bends
+  the twin's mirror segment (``couture.pattern.pieces.with_mirrored_curve``).
+  Its Jacobian is exact (the weights times the 2x2 identity for the piece's
+  panel, times diag(-1, 1) for its twin's, the other panels zero) when no
+  stroke but a seam names either; else the central differences below.
 
 Jacobians are central finite differences of the drafting function with step
 h = 1e-6 in each scalar stroke/option value (metres or fractions): drafting
@@ -49,7 +53,7 @@ from couture.pattern.draft import DraftContext, draft_with_context, interior_fra
 from couture.pattern.drafted import DraftedPattern, PanelJacobian
 from couture.pattern.errors import PatternError
 from couture.pattern.geometry import self_intersections, signed_area
-from couture.pattern.pieces import point_weights
+from couture.pattern.pieces import MIRROR, mirror_twin, point_weights, twin_points, with_mirrored_curve
 from schemas.design import Design, Piece, Stroke
 
 FD_STEP = 1e-6
@@ -84,28 +88,47 @@ def _piece_point(design: Design, element: str) -> tuple[int, Piece, int]:
     return j, design.pieces[j], i
 
 
-def _point_dofs(design: Design, element: str):
-    """(setter, q, G) of a piece point: q its position [m], G the identity."""
+def _moved_points(design: Design, element: str) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """Per piece a ``pt:`` edit moves: (piece index, outline indices, weights,
+    the 2x2 map of the pointer's motion onto theirs): the piece's own points
+    (the identity), and for a 'Cut 2' pair its twin's mirror points (x mirrored)."""
     j, piece, i = _piece_point(design, element)
     idx, w = point_weights(piece, i, element)
-    P0 = np.asarray(piece.outline, float)
-    q0 = P0[i].copy()
-    # a notch follows the outline point nearest it (its weight)
-    N0 = np.asarray(piece.notches, float).reshape(-1, 2)
-    wv = np.zeros(len(P0))
-    wv[idx] = w
-    wn = wv[np.argmin(np.linalg.norm(N0[:, None, :] - P0[None, :, :], axis=2), axis=1)] if len(N0) else np.zeros(0)
+    out = [(j, idx, w, np.eye(2))]
+    twin = mirror_twin(design, piece)
+    if twin is not None:
+        out.append((twin[0], twin_points(piece, idx), w, np.diag(MIRROR)))
+    return out
+
+
+def _point_dofs(design: Design, element: str):
+    """(setter, q, G) of a piece point: q its position [m], G the identity.
+    A 'Cut 2' twin's points move with it, mirrored."""
+    _, piece, i = _piece_point(design, element)
+    moved = _moved_points(design, element)  # checks the index first
+    q0 = np.asarray(piece.outline[i], float).copy()
+    moves = []
+    for j, idx, w, A in moved:
+        P0 = np.asarray(design.pieces[j].outline, float)
+        # a notch follows the outline point nearest it (its weight)
+        N0 = np.asarray(design.pieces[j].notches, float).reshape(-1, 2)
+        wv = np.zeros(len(P0))
+        wv[idx] = w
+        wn = wv[np.argmin(np.linalg.norm(N0[:, None, :] - P0[None, :, :], axis=2), axis=1)] if len(N0) else np.zeros(0)
+        moves.append((j, idx, w, A, P0, N0, wn))
 
     def set_point(d, q):
         delta = np.asarray(q, float) - q0
-        P = P0.copy()
-        P[idx] += w[:, None] * delta[None, :]
-        N = N0 + wn[:, None] * delta[None, :]
         d = copy.deepcopy(d)
         pieces = list(d.pieces)
-        pieces[j] = copy.deepcopy(pieces[j])
-        pieces[j].outline = [(float(x), float(y)) for x, y in P]
-        pieces[j].notches = [(float(x), float(y)) for x, y in N]
+        for j, idx, w, A, P0, N0, wn in moves:
+            dj = A @ delta
+            P = P0.copy()
+            P[idx] += w[:, None] * dj[None, :]
+            N = N0 + wn[:, None] * dj[None, :]
+            pieces[j] = copy.deepcopy(pieces[j])
+            pieces[j].outline = [(float(x), float(y)) for x, y in P]
+            pieces[j].notches = [(float(x), float(y)) for x, y in N]
         d.pieces = pieces
         return d
 
@@ -162,7 +185,7 @@ def _dofs(design: Design, element: str, ctx: DraftContext | None):
                     pts = [list(p) for p in x.params["points"]]
                     pts[i] = [float(q[0]), float(q[1])]
                     x.params = {**x.params, "points": pts}
-            return d
+            return with_mirrored_curve(d, sid)  # a 'Cut 2' twin's segment bends with it
 
         return set_cv, np.array([float(s), float(dn)]), np.vstack([t / L, n])
     if kind in ("dart", "hole") and len(parts) >= 3:
@@ -231,14 +254,18 @@ def edit_jacobian(design: Design, element_id: str, spacing: float | None = None)
     """Motion of every outline/hole polyline vertex per unit pointer motion,
     (k, 2, 2) per panel (see module doc for parameters: column 1 zero)."""
     if element_id.startswith("pt:"):
-        _, piece, i = _piece_point(design, element_id)
-        if not any(st.panel == piece.name and st.kind != "seam" for st in design.strokes):
-            # the piece's panel is its outline as given: exact, no drafting (a
+        moves = _moved_points(design, element_id)
+        names = {design.pieces[j].name for j, *_ in moves}
+        if not any(st.panel in names and st.kind != "seam" for st in design.strokes):
+            # the pieces' panels are their outlines as given: exact, no drafting (a
             # FreeSewing piece has dozens of corners, each a handle)
-            idx, w = point_weights(piece, i, element_id)
-            exact = np.zeros((len(piece.outline), 2, 2))
-            exact[idx] = w[:, None, None] * np.eye(2)[None]
-            return {piece.name: PanelJacobian(exact, [np.zeros((len(h), 2, 2)) for h in piece.holes])}
+            out = {}
+            for j, idx, w, A in moves:
+                pc = design.pieces[j]
+                exact = np.zeros((len(pc.outline), 2, 2))
+                exact[idx] = w[:, None, None] * A[None]
+                out[pc.name] = PanelJacobian(exact, [np.zeros((len(h), 2, 2)) for h in pc.holes])
+            return out
     kw = {} if spacing is None else {"spacing": spacing}
     p0, ctx = draft_with_context(design, **kw)
     setter, q, G = _dofs(design, element_id, ctx)

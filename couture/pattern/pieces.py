@@ -13,7 +13,7 @@ from couture.pattern.drafted import Panel, Placement, Segment
 from couture.pattern.errors import PatternError
 from couture.pattern.geometry import signed_area
 from couture.pattern.slopers.base import Ring
-from schemas.design import Design, Piece
+from schemas.design import Design, Piece, Stroke
 
 FLAT_Z = 0.45
 """[m] a 'flat' piece lies in the plane z = FLAT_Z, in front of the body"""
@@ -158,7 +158,9 @@ def point_weights(piece: Piece, i: int, element: str) -> tuple[np.ndarray, np.nd
 
 def piece_panels(design: Design) -> list[Panel]:
     """Every free-form piece of the design as a panel; a 'flat' piece gets its
-    plane placement here, a ringed one from :func:`piece_rings`."""
+    plane placement here, a ringed one from :func:`piece_rings`. A 'Cut 2'
+    pair that is not a mirror pair is refused (:func:`check_mirror_pairs`)."""
+    check_mirror_pairs(design)
     out = []
     x = -0.5
     for pc in design.pieces:
@@ -252,3 +254,128 @@ def piece_rings(design: Design, body: str = "default") -> list[Ring]:
             origin = M.LEFT_ARM_SHOULDER * np.array([sign, 1.0, 1.0]) - SLEEVE_DOWN * a
             rings.append(Ring(names, angles, origin, axis=a, ref=f, body_radius=_cap_radius, section=kind))
     return rings
+
+
+# ------------------------------------------------------------------ 'Cut 2' pairs
+
+MIRROR = np.array([-1.0, 1.0])
+"""a 'Cut 2' twin's point moves by this times the edited piece's point (x mirrored)"""
+MIRROR_TOL = 1e-6
+"""[m] a pair's outlines are mirror images within this (``check_mirror_pairs``)"""
+
+
+def mirror_twin(design: Design, piece: Piece) -> tuple[int, Piece] | None:
+    """(index in ``design.pieces``, piece) of ``piece``'s 'Cut 2' twin
+    (``Piece.mirror_of``), None without one."""
+    if not piece.mirror_of:
+        return None
+    j = next((j for j, pc in enumerate(design.pieces) if pc.name == piece.mirror_of), None)
+    if j is None:
+        raise PatternError(piece.name, f"mirror_of names no piece {piece.mirror_of!r}")
+    return j, design.pieces[j]
+
+
+def twin_points(piece: Piece, idx) -> np.ndarray:
+    """The twin's outline indices mirroring ``piece``'s outline indices ``idx``."""
+    return (piece.mirror_index - np.asarray(idx, int)) % len(piece.outline)
+
+
+def _corners(piece: Piece) -> list[int]:
+    return list(piece.corners) or [0]
+
+
+def twin_segment(piece: Piece, twin: Piece, segment: str, element: str = "") -> str:
+    """The name of the twin's segment that mirrors ``piece``'s ``segment``
+    (it runs the other way: from the mirror of the segment's end to that of its start)."""
+    cs = _corners(piece)
+    names = [segment_name(i) for i in range(len(cs))]
+    if segment not in names:
+        raise PatternError(element or piece.name, f"piece {piece.name!r} has no segment {segment!r} (it has {names})")
+    i = names.index(segment)
+    start, stop = (int(x) for x in twin_points(piece, [cs[(i + 1) % len(cs)], cs[i]]))
+    tc = _corners(twin)
+    if start not in tc or tc[(tc.index(start) + 1) % len(tc)] != stop:
+        raise PatternError(
+            element or piece.name,
+            f"segment {segment} of {piece.name!r} has no mirror segment on its twin {twin.name!r} (corners differ)",
+        )
+    return segment_name(tc.index(start))
+
+
+def mirror_outline(piece: Piece, twin: Piece) -> np.ndarray:
+    """The twin's outline as the mirror image of ``piece``'s, (k, 2) [m]: its
+    point j at (c - x, y) of point (mirror_index - j) mod k, the axis c the one
+    the twin's first point gives now."""
+    P = np.asarray(piece.outline, float)
+    src = twin_points(piece, np.arange(len(P)))
+    c = float(twin.outline[0][0]) + P[src[0], 0]
+    Q = P[src] * MIRROR
+    Q[:, 0] += c
+    return Q
+
+
+def check_mirror_pairs(design: Design) -> None:
+    """Refuse a design whose 'Cut 2' pairs (``Piece.mirror_of``) do not name
+    each other or are not mirror images (point count, corners, outline to
+    ``MIRROR_TOL``), naming the pieces and the first point off."""
+    by = {pc.name: pc for pc in design.pieces}
+    for pc in design.pieces:
+        if not pc.mirror_of:
+            continue
+        tw = by.get(pc.mirror_of)
+        if tw is None or tw is pc:
+            raise PatternError(pc.name, f"mirror_of names no other piece {pc.mirror_of!r}")
+        if tw.mirror_of != pc.name or tw.mirror_index != pc.mirror_index:
+            raise PatternError(
+                pc.name,
+                f"is marked the mirror of {tw.name!r}, which does not name it back with the same mirror_index "
+                f"({tw.mirror_of!r}, {tw.mirror_index} against {pc.mirror_index})",
+            )
+        k = len(pc.outline)
+        if len(tw.outline) != k:
+            raise PatternError(pc.name, f"has {k} outline points, its mirror {tw.name!r} {len(tw.outline)}")
+        if not 0 <= pc.mirror_index < k:
+            raise PatternError(pc.name, f"mirror_index {pc.mirror_index} is not an outline index in [0, {k})")
+        if sorted(int(c) for c in twin_points(pc, _corners(pc))) != _corners(tw):
+            raise PatternError(pc.name, f"its corners are not the mirror of {tw.name!r}'s")
+        gap = np.linalg.norm(mirror_outline(pc, tw) - np.asarray(tw.outline, float), axis=1)
+        j = int(np.argmax(gap))
+        if gap[j] > MIRROR_TOL:
+            raise PatternError(
+                pc.name,
+                f"point {j} of its mirror {tw.name!r} is {1e3 * gap[j]:.3g} mm off the mirror image of its point "
+                f"{int(twin_points(pc, [j])[0])}: a 'Cut 2' pair edits as one (edit one, or drop mirror_of from both)",
+            )
+
+
+def with_mirrored_curve(design: Design, stroke_id: str) -> Design:
+    """``design`` with the curve stroke ``stroke_id`` mirrored onto its piece's
+    'Cut 2' twin (a stroke on the twin's mirror segment, replaced or added:
+    control point i at [s, dn] there is point n-1-i at [1 - s, dn], the
+    segment running the other way and its normal still outward); the design
+    itself when that piece has no twin."""
+    import copy
+
+    st = next((s for s in design.strokes if s.id == stroke_id), None)
+    if st is None or st.kind != "curve":
+        raise PatternError(stroke_id, "no curve stroke with that id")
+    piece = next((pc for pc in design.pieces if pc.name == st.panel), None)
+    found = None if piece is None else mirror_twin(design, piece)
+    if piece is None or found is None:
+        return design
+    twin = found[1]
+    seg = twin_segment(piece, twin, str(st.params.get("segment")), stroke_id)
+    pts = [[1.0 - float(s), float(dn)] for s, dn in reversed(st.params["points"])]
+    old = next(
+        (s for s in design.strokes if s.kind == "curve" and s.panel == twin.name and s.params.get("segment") == seg),
+        None,
+    )
+    new = Stroke(
+        id=old.id if old else f"curve-{twin.name}-{seg}",
+        kind="curve",
+        panel=twin.name,
+        params={"segment": seg, "points": pts},
+    )
+    d = copy.copy(design)
+    d.strokes = [s for s in design.strokes if old is None or s.id != old.id] + [new]
+    return d

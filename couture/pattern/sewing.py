@@ -1067,6 +1067,7 @@ def build_design(
                 ),
             )
         )
+    _pair_mirrors(panels, out_pieces, notes)
     strokes = [
         Stroke(
             id=f"seam:{s.a_panel}:{s.a_segment}:{s.b_panel}:{s.b_segment}",
@@ -1098,6 +1099,47 @@ def build_design(
         notes=notes,
     )
     return design, report
+
+
+MIRROR_MATCH = 1e-9
+"""[m] a 'Cut 2' pair's panels are taken for mirror images within this (they
+are built as such: measured 1e-15 m)"""
+
+
+def _mirror_index(A: np.ndarray, B: np.ndarray, a_corners: list[int], b_corners: list[int]) -> int | None:
+    """r with B[j] = (c - A[(r - j) mod k].x, A[(r - j) mod k].y) for one c,
+    within ``MIRROR_MATCH``, and the corners mirrored likewise; None when there is none."""
+    k = len(A)
+    if len(B) != k:
+        return None
+    j = np.arange(k)
+    for r in np.flatnonzero(np.abs(A[:, 1] - B[0, 1]) <= MIRROR_MATCH):
+        M = A[(r - j) % k] * np.array([-1.0, 1.0])
+        M[:, 0] += B[0, 0] - M[0, 0]
+        if np.abs(M - B).max() <= MIRROR_MATCH and sorted((r - np.asarray(a_corners)) % k) == list(b_corners):
+            return int(r)
+    return None
+
+
+def _pair_mirrors(panels: list[_Panel], pieces: list[Piece], notes: list[str]) -> None:
+    """Mark each 'Cut 2' pair (a panel and its ``twin``) as mirror images of
+    each other (``Piece.mirror_of``, ``mirror_index``), the second's outline set
+    to the first's exact mirror, so that an edit of either applies to both."""
+    from couture.pattern.pieces import mirror_outline
+
+    by = {pc.name: pc for pc in pieces}
+    for p in panels:
+        a, b = by.get(p.name), by.get(p.twin)
+        if a is None or b is None or a.mirror_of or pieces.index(a) > pieces.index(b):
+            continue
+        A, B = np.asarray(a.outline, float), np.asarray(b.outline, float)
+        r = _mirror_index(A, B, list(a.corners), list(b.corners))
+        if r is None:
+            notes.append(f"{a.name} and {b.name} are not mirror images (after sewing): each edits alone")
+            continue
+        a.mirror_of, b.mirror_of = b.name, a.name
+        a.mirror_index = b.mirror_index = r
+        b.outline = [(float(x), float(y)) for x, y in mirror_outline(a, b)]
 
 
 # ------------------------------------------------------------------ the body

@@ -7,6 +7,7 @@ GUI APIs, CoutureUI owns the servers and wires the parts, one job each:
   :class:`~couture.ui.pattern_view.PatternView` (pattern scene): drawing, picking;
 - :class:`~couture.ui.controls.Controls`: design controls → new designs;
 - :class:`~couture.ui.tools.PatternTools`: pattern tools → strokes;
+- :class:`~couture.ui.seams_panel.SeamsPanel`: the seams' confidence; confirm or drop one;
 - :class:`~couture.ui.gestures.Gestures`: drags → typed edits;
 - :class:`~couture.ui.exports.SessionPanel`: record toggle, exports;
 - :class:`~couture.ui.adjust_panel.AdjustPanel`: a hem or waist loop dragged
@@ -50,6 +51,7 @@ from couture.ui.handles import HandleSet
 from couture.ui.loops import Drafter, DrapeRenderer
 from couture.ui.page import PageServer
 from couture.ui.pattern_view import PatternView
+from couture.ui.seams_panel import SeamsPanel
 from couture.ui.state import DrapeFrame
 from couture.ui.status import StatusPanel
 from couture.ui.tools import PatternTools
@@ -177,6 +179,7 @@ class CoutureUI:
             on_record=lambda on: self.on_record and self.on_record(on),
         )
         self.tools = PatternTools(self.server2d.gui, self.view2d, lambda: self.design, self.commit, self._pick)
+        self.seams = SeamsPanel(self.server2d.gui, lambda: self.design, self.commit)
         self.gestures = Gestures(
             lambda: self.design,
             self.commit,
@@ -211,7 +214,9 @@ class CoutureUI:
         ]
         for t in self._threads:
             t.start()
-        self.drafter.slot.put(self.design)
+        # the initial design as any later one: its body on the mannequin (an imported
+        # design names the shipped body nearest its measurements), its controls, its draft
+        self._adopt(self.design)
 
     def stop(self) -> None:
         self._stop.set()
@@ -402,6 +407,7 @@ class CoutureUI:
         if self.view3d.body_name != shown:  # a point picked on the old body is no target
             self.tryon.set_target(None)
             self.view3d.show_body_marker(None)
+        self.seams.show(design)
         self.drafter.slot.put(design)
 
     def pick_body(self, origin, direction):

@@ -47,12 +47,19 @@ class DrapeRenderer:
         self.frames_pushed = 0
         self.on_pushed: Callable[[DrapeFrame], None] | None = None
         """called (on this thread) after each drape reached the view"""
+        self.waiting: DrapeFrame | None = None
+        """the newest drape whose mesh had not arrived when it was taken: shown
+        once that mesh is here, unless a newer drape was shown first (a late
+        joiner gets the session's meshes and drapes on separate subscriptions,
+        in any order; a finished solve sends no other drape)"""
 
     def run(self, stop: threading.Event) -> None:
         last_push = 0.0
         last_status = 0.0
         while not stop.is_set():
             frame = self.slot.take(timeout=0.05)
+            if frame is None and self.waiting is not None and self._mesh_for(self.waiting) is not None:
+                frame, self.waiting = self.waiting, None
             if frame is not None:
                 wait = last_push + self.min_dt - time.perf_counter()
                 if wait > 0:
@@ -73,14 +80,21 @@ class DrapeRenderer:
                 except Exception:
                     log.exception("status refresh failed")
 
-    def push(self, frame: DrapeFrame) -> None:
+    def _mesh_for(self, frame: DrapeFrame) -> GarmentMesh | None:
         n = len(frame.x)
-        if self.view3d.mesh is None or self.view3d.mesh.n_vertices != n:
-            mesh = next((m for m in self.meshes() if m.n_vertices == n), None)
-            if mesh is None:
-                return  # a drape for a mesh we do not have (yet): drop
+        if self.view3d.mesh is not None and self.view3d.mesh.n_vertices == n:
+            return self.view3d.mesh
+        return next((m for m in self.meshes() if m.n_vertices == n), None)
+
+    def push(self, frame: DrapeFrame) -> None:
+        mesh = self._mesh_for(frame)
+        if mesh is None:
+            self.waiting = frame  # a drape for a mesh we do not have yet: shown when it comes
+            return
+        if mesh is not self.view3d.mesh:
             self.view3d.set_mesh(mesh)
         self.view3d.set_x(frame.x)
+        self.waiting = None  # anything held is older than this
         self.on_screen = frame
         self.frames_pushed += 1
         self.status.show_frame(frame, self.frames_pushed)

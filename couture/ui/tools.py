@@ -13,6 +13,7 @@ import msgspec
 import numpy as np
 import viser
 
+from couture.pattern.pieces import with_mirrored_curve
 from couture.ui.geometry import MaterialPoint
 from couture.ui.pattern_view import PatternView
 from couture.ui.widgets import on_user_change
@@ -100,7 +101,10 @@ class PatternTools:
         d = self.design()
         strokes = [s for s in d.strokes if s.id != stroke.id] + [stroke]
         self.arm(None)
-        self.commit(msgspec.structs.replace(d, strokes=strokes))
+        new = msgspec.structs.replace(d, strokes=strokes)
+        if stroke.kind == "curve":
+            new = with_mirrored_curve(new, stroke.id)  # a 'Cut 2' twin's segment gets the mirror curve
+        self.commit(new)
 
     def _stroke(self, tool: str, picks: list[SegmentPick]) -> Stroke:
         n = next(self._stroke_ids)
