@@ -208,6 +208,52 @@ def arm_front_at_plus_x(arm: str) -> bool:
     return bool(np.cross(a, f)[2] > 0)
 
 
+NECK_MARGIN = 0.01
+"""[m] clearance of a collar's ring round the neck"""
+POINT_MARGIN = 0.015
+"""[m] default clearance of a piece laid at an arrangement point"""
+POINT_REACH = 0.04
+"""[m] a piece at an arrangement point clears the body's sections this far
+above and below each of its rows (``Ring.section_reach``): one piece alone
+cannot lean on its neighbours' girth, so a table row that undercuts the body
+would put it inside"""
+
+
+def point_ring(pc: Piece, body: str = "default") -> Ring:
+    """The ring of one piece laid at its arrangement point (``placement.point``,
+    :mod:`couture.pattern.landmarks`): wrapped round the body's local axis
+    there, its centre (the middle of its height and width) at the point's
+    height and angle, ``placement.clearance`` outside the body's section (the
+    piece does not shrink it: a narrow piece leaves the rest of the way round
+    open)."""
+    from couture.pattern.landmarks import arrangement_point
+    from couture.pattern.slopers.shirt import _cap_radius
+
+    if not pc.placement.point:
+        raise PatternError(pc.name, "placement ring 'point' needs an arrangement point (placement.point)")
+    try:
+        pt = arrangement_point(body, pc.placement.point)
+    except ValueError as e:
+        raise PatternError(pc.name, str(e)) from None
+    P = _array(pc, pc.outline, "outline")
+    yc = 0.5 * float(P[:, 1].min() + P[:, 1].max())
+    clear = pc.placement.clearance if pc.placement.clearance is not None else POINT_MARGIN
+    arm = pt.section.endswith("_arm")
+    return Ring(
+        [pc.name],
+        [pt.angle],
+        pt.origin - yc * pt.axis,
+        axis=pt.axis.copy(),
+        ref=pt.ref.copy(),
+        section=pt.section,
+        margin=clear,
+        min_margin=clear,
+        anchor_y=yc,
+        body_radius=_cap_radius if arm else None,
+        section_reach=POINT_REACH,
+    )
+
+
 def piece_rings(design: Design, body: str = "default") -> list[Ring]:
     """The rings of the design's ringed pieces, each in ``position`` order: the
     torso ring, its top (material y = 0) at the first piece's ``height`` [m]
@@ -216,11 +262,17 @@ def piece_rings(design: Design, body: str = "default") -> list[Ring]:
     leg's ring about that leg's axis, from its waist height likewise, open at
     the inner side (the trousers sloper's leg rings); an arm's ring about the
     arm, its top a little down from the shoulder (the shirt sloper's sleeve
-    rings)."""
+    rings); a collar's ring round the neck, its top at the first piece's
+    ``height`` on the default body, moved with the body's neck base
+    (:func:`couture.pattern.landmarks.neck`); one ring per piece laid at an
+    arrangement point (:func:`point_ring`)."""
     from couture.pattern.slopers.shirt import _arm_frame, _cap_radius
 
     rings: list[Ring] = []
-    for kind in ("torso", "band", "left_leg", "right_leg", "left_arm", "right_arm"):
+    for pc in design.pieces:
+        if pc.placement.ring == "point":
+            rings.append(point_ring(pc, body))
+    for kind in ("torso", "band", "neck", "left_leg", "right_leg", "left_arm", "right_arm"):
         ringed = sorted((pc for pc in design.pieces if pc.placement.ring == kind), key=lambda pc: pc.placement.position)
         if not ringed:
             continue
@@ -236,6 +288,20 @@ def piece_rings(design: Design, body: str = "default") -> list[Ring]:
                     section="torso",
                     landmark="waist",
                     top_rows_as_full=True,
+                )
+            )
+        elif kind == "neck":
+            # ``height``: the collar's top on the default body; fit_ring moves it with the body's neck base
+            clear = first.clearance if first.clearance is not None else NECK_MARGIN
+            rings.append(
+                Ring(
+                    names,
+                    angles,
+                    np.array([0.0, first.height, M.TORSO_AXIS_Z]),
+                    section="torso",
+                    landmark="neck",
+                    margin=clear,
+                    min_margin=min(clear, NECK_MARGIN),
                 )
             )
         elif kind.endswith("_leg"):

@@ -172,9 +172,9 @@ def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str,
     landmark = getattr(ring, "landmark", None)
     if landmark is not None and body != "default":
         # the drafted origin is at the default body's landmark height: move it along the axis to this body's
-        from couture.bodies import measured
+        from couture.pattern.landmarks import landmark_y
 
-        shift = measured(body)[f"{landmark}_y"] - measured("default")[f"{landmark}_y"]
+        shift = landmark_y(body, landmark) - landmark_y("default", landmark)
         origin = origin + a * (shift / a[1])
     f = FRONT if ring.ref is None else np.asarray(ring.ref, float)
     f = f - (f @ a) * a
@@ -199,6 +199,10 @@ def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str,
                 raise ValueError("a ring needs a body section or a body_radius")
             return circle
         R = sec.radii(axial + t_off)
+        reach = getattr(ring, "section_reach", 0.0)
+        if reach > 0:
+            for dt in (-reach, -0.5 * reach, 0.5 * reach, reach):
+                R = np.maximum(R, sec.radii(axial + t_off + dt))
         # theta_ring = theta_sec - phi
         th = (2 * np.pi * np.arange(K) / K + phi) % (2 * np.pi) / (2 * np.pi) * K
         k0 = np.floor(th).astype(int) % K

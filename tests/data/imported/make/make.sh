@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Re-makes the imported-pattern fixtures under tests/data/imported/ from the
 # real tools (not run in CI; the files it made are committed):
-#   FreeSewing 4.10.2 (npm): penelope (skirt), titan (trousers), teagan (a top
+#   FreeSewing 4.10.2 (npm): penelope (skirt), titan (trousers), aaron (a sleeveless
+#   top with a neck binding and arm bindings), teagan (a top
 #   with sleeves), each drafted for two @freesewing/models measurement sets,
 #   rendered to SVG with seam allowances (the importer must tell them apart);
 #   Valentina (Debian's package): two examples of its collection exported headless
@@ -23,7 +24,7 @@ npm install --no-audit --no-fund "@freesewing/core@$V" "@freesewing/models@$V" "
 cp "$HERE/freesewing.mjs" .
 node freesewing.mjs out
 mkdir -p "$DATA/freesewing"
-cp out/penelope_*.svg out/titan_*.svg out/teagan_*.svg out/cis*.json "$DATA/freesewing/"
+cp out/penelope_*.svg out/titan_*.svg out/teagan_*.svg out/aaron_*.svg out/cis*.json "$DATA/freesewing/"
 
 if ! command -v valentina >/dev/null; then
   SUDO=""; [ "$(id -u)" = 0 ] || SUDO="sudo"
