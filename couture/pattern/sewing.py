@@ -1225,7 +1225,15 @@ def build_design(
         notes.append(f"{b.name} sewn to the waist in {len(band_seams)} parts, round the body from the opening")
     from couture.pattern.landmarks import neck
 
-    neck_base = neck("default").base_y
+    nk = neck("default")
+    neck_base = nk.base_y
+    for p in panels:
+        if p.neck and float(np.ptp(p.outline[:, 1])) > nk.top_y - nk.base_y:
+            notes.append(
+                f"{p.name} stands {np.ptp(p.outline[:, 1]) * 100:.1f} cm from the neck's base, above the jaw "
+                f"({(nk.top_y - nk.base_y) * 100:.1f} cm up): placed round the head's section there; a collar "
+                "that folds down (its fall) is not modelled"
+            )
     unplaced = [p.name for p in panels if p.name not in rings and p.role in ("facing", "binding")]
     if unplaced:
         notes.append(
