@@ -134,8 +134,10 @@ class PiecePlacement(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     inner side above the crotch, where the other leg's panels join); 'left_arm'
     / 'right_arm': a sleeve round that arm, its top centre on top of the arm;
     'band': a waistband round the torso, a ring of its own above the torso
-    ring's top; 'neck': a collar (or a neck band) round the neck, its neck
-    edge (its bottom) at the body's neck base (``couture.pattern.landmarks``);
+    ring's top; 'neck': a collar (or a neck band): laid on the neckline
+    it is sewn to as the other pieces are placed, or, sewn to nothing, round
+    the neck, its neck edge (its bottom) at the body's neck base
+    (``couture.pattern.landmarks``);
     'point': one piece laid with its centre at the arrangement point
     ``point`` and wrapped round the body's local axis there (CLO's
     arrangement points);

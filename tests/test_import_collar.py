@@ -5,8 +5,9 @@ FreeSewing's aaron (a sleeveless top with a neck binding and two arm
 bindings), for both measurement sets: the neck binding is found as the
 collar, split into the front's and the back's neckline and sewn to them, its
 ends sewn into a loop; the armholes stay free (no sleeve), the arm bindings
-are left out with a note; the binding is placed round the neck at the body's
-neck base, outside the body and below the jaw. Pieces laid at every body's
+are left out with a note; the binding (ring 'neck') is laid on the scoop
+neckline it is sewn to, outside the body and below the jaw, and without its
+seams round the neck at the body's neck base. Pieces laid at every body's
 arrangement points start outside the body, their centres at the points."""
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ def _pairs(rep) -> set[frozenset[tuple[str, str]]]:
 
 
 @pytest.mark.parametrize("stem", ["aaron_cisMaleAdult38", "aaron_cisMaleAdult46"])
-def test_neck_binding_sewn_round_the_neckline_and_placed_round_the_neck(stem):
+def test_neck_binding_sewn_round_the_neckline_and_laid_on_it(stem):
     design, rep = _design(stem)
     by = {p.name: p for p in design.pieces}
     assert set(by) == {"front", "back", "neckBinding"}  # the arm bindings are left out ...
@@ -79,10 +80,45 @@ def test_neck_binding_sewn_round_the_neckline_and_placed_round_the_neck(stem):
     assert np.isfinite(x).all() and phi.min() > 0.0
     nk = neck(design.body.name)
     c = at["neckBinding"]
-    assert nk.base_y - 0.005 < c[:, 1].min() and c[:, 1].max() < nk.top_y  # on the neck, below the jaw
-    # round the neck: every direction about the torso axis is covered
-    ang = np.sort(np.arctan2(c[:, 0], c[:, 2] - 0.04))
-    assert np.diff(np.concatenate([ang, [ang[0] + 2 * np.pi]])).max() < 0.5
+    assert c[:, 1].max() < nk.top_y  # below the jaw
+    # all round: at the centre front and back, on both sides
+    ang = np.arctan2(c[:, 0], c[:, 2] - 0.04)
+    assert np.abs(ang).min() < 0.1 and np.abs(ang).max() > np.pi - 0.1 and (ang > 1).any() and (ang < -1).any()
+    # laid on the scoop neckline it is sewn to (its centre front 10 cm below the neck), not round the neck
+    drafted = validate(design)
+    pl = next(p for p in drafted.panels if p.name == "neckBinding").placement
+    assert pl.kind == "grid"
+    from couture.pattern.draft import segment_points
+    from couture.pattern.placement import place
+
+    panels = {p.name: p for p in drafted.panels}
+    for s in collar:
+        a = place(panels["neckBinding"], segment_points(*_seg(panels, "neckBinding", s.a_segment)))
+        b = place(panels[s.b_panel], segment_points(*_seg(panels, s.b_panel, s.b_segment)))
+        # each part's neck edge on its neckline piece (the ends where the shoulder seams still gape excepted)
+        d = np.linalg.norm(a[1:-1, None, :] - b[None, :, :], axis=2).min(axis=1)
+        assert np.median(d) < 0.005, (s.b_panel, np.median(d))
+    assert c[:, 1].min() < nk.base_y - 0.10
+
+
+def _seg(panels, panel: str, name: str):
+    p = panels[panel]
+    return p, next(g for g in p.segments if g.name == name)
+
+
+def test_an_unsewn_collar_stays_round_the_neck():
+    """The neck binding with its seams deleted from the design: nothing to lay
+    it on, so it keeps its ring round the neck, its neck edge at the body's
+    neck base, outside the body and below the jaw."""
+    design, _ = _design("aaron_cisMaleAdult38")
+    design.strokes = [s for s in design.strokes if "neckBinding" not in s.id]
+    drafted = validate(design)
+    assert next(p for p in drafted.panels if p.name == "neckBinding").placement.kind == "wrap"
+    x, phi, at = _placed(design)
+    assert phi.min() > 0.0
+    nk = neck(design.body.name)
+    c = at["neckBinding"]
+    assert nk.base_y - 0.005 < c[:, 1].min() and c[:, 1].max() < nk.top_y
 
 
 def test_collar_of_the_wrong_length_is_not_sewn():

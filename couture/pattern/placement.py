@@ -103,8 +103,18 @@ def place(panel: Panel, points2d: np.ndarray) -> np.ndarray:
             m = j == row
             out[m] = (1 - w[m]) * _wrap_row(pl, row, P[m, 0]) + w[m] * _wrap_row(pl, row + 1, P[m, 0])
         return out
+    if pl.kind == "grid":
+        gx, gy, G = pl.grid_x, pl.grid_y, pl.grid_pos
+        assert gx is not None and gy is not None and G is not None, "a grid placement has its grid"
+        i = np.clip(np.searchsorted(gx, P[:, 0], side="right") - 1, 0, len(gx) - 2)
+        j = np.clip(np.searchsorted(gy, P[:, 1], side="right") - 1, 0, len(gy) - 2)
+        s = np.clip((P[:, 0] - gx[i]) / (gx[i + 1] - gx[i]), 0.0, 1.0)[:, None]
+        t = np.clip((P[:, 1] - gy[j]) / (gy[j + 1] - gy[j]), 0.0, 1.0)[:, None]
+        return (1 - t) * ((1 - s) * G[j, i] + s * G[j, i + 1]) + t * ((1 - s) * G[j + 1, i] + s * G[j + 1, i + 1])
     if pl.kind != "cylinder":
-        raise ValueError(f"placement kind {pl.kind!r} of panel {panel.name!r} is not 'wrap', 'cylinder' or 'plane'")
+        raise ValueError(
+            f"placement kind {pl.kind!r} of panel {panel.name!r} is not 'wrap', 'grid', 'cylinder' or 'plane'"
+        )
     a, f, b = frame(pl)
     taper = getattr(pl, "taper", 0.0)
     r = np.maximum(pl.radius - taper * P[:, 1], 1e-3)
