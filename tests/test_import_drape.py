@@ -70,8 +70,8 @@ def test_imported_trousers_tshirt_and_banded_skirt_drape_coarse(stem, measuremen
     (its shoulders settle up onto the body's, 6 cm above where placed);
     penelope 313 iterations, 32 s, 9.7 mm, settled 4.4 cm; aaron with its
     neck binding sewn round the scoop neckline and laid on it: 318
-    iterations, 50 s (13 s CPU), residual 8.1e-4, seams closed to 1e-6 m,
-    nearest 9.6 mm."""
+    iterations, 14 s on a quiet machine (50 s beside three other workers),
+    residual 8.1e-4, seams closed to 1e-6 m, nearest 9.6 mm."""
     import json
 
     from couture.cloth.body import load_mannequin_sdf
