@@ -20,6 +20,10 @@ StiffnessScale = Annotated[float, msgspec.Meta(gt=0.0, le=1e6)]
 decoded message or file outside (0, 1e6] is rejected naming the field)"""
 
 
+Clearance = Annotated[float, msgspec.Meta(ge=0.002, le=0.1)]
+"""[m] a placed piece's gap from the body's section: 2 mm .. 10 cm"""
+
+
 class Fabric(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     """Material of every panel (SC Table 1 ranges in the comments; the
     allowed ranges, checked by the remesher and the solvers, are
@@ -130,13 +134,19 @@ class PiecePlacement(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     there): pieces of one ring are wrapped round one axis in ``position``
     order, tiling the body's section there (``couture.pattern.placement.fit_ring``)."""
 
-    ring: Literal["torso", "band", "left_leg", "right_leg", "left_arm", "right_arm", "flat"] = "torso"
+    ring: Literal["torso", "band", "neck", "left_leg", "right_leg", "left_arm", "right_arm", "point", "flat"] = "torso"
     """'torso': round the torso, theta = 0 at the front; 'left_leg' /
     'right_leg': round that leg (a trouser leg's front and back, open at the
     inner side above the crotch, where the other leg's panels join); 'left_arm'
     / 'right_arm': a sleeve round that arm, its top centre on top of the arm;
     'band': a waistband round the torso, a ring of its own above the torso
-    ring's top;
+    ring's top; 'neck': a collar (or a neck band): laid on the neckline
+    it is sewn to as the other pieces are placed, or, sewn to nothing, round
+    the neck, its neck edge (its bottom) at the body's neck base
+    (``couture.pattern.landmarks``);
+    'point': one piece laid with its centre at the arrangement point
+    ``point`` and wrapped round the body's local axis there (CLO's
+    arrangement points);
     'flat': laid flat in front of the body (not wrapped: a piece the importer
     could not place)"""
     position: int = 0
@@ -148,7 +158,15 @@ class PiecePlacement(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     height: float = 0.27
     """[m] world height (y) of material y = 0 (each piece's top); read from
     the ring's first piece only (a leg: where its axis crosses that height; an
-    arm: ignored, the sleeve's top hangs from the shoulder)"""
+    arm: ignored, the sleeve's top hangs from the shoulder; 'neck': the top
+    on the default body, moved with the body's neck base on another; 'point':
+    ignored, the point gives the height)"""
+    point: str = ""
+    """ring 'point': the arrangement point's name ('front_waist', 'back_neck',
+    'left_upper_arm', ...: ``couture.pattern.landmarks.point_names``)"""
+    clearance: Clearance | None = None
+    """[m] ring 'point' (and 'neck'): the gap between the body's section and the
+    piece, 0.002..0.1; None: the ring's default (0.015)"""
 
 
 class Piece(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):

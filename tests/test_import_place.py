@@ -154,7 +154,8 @@ def test_unnamed_valentina_tshirt_roles_from_shapes(flavour, front, back, sleeve
     (ASTM) or 'piece1', ... (AAMA): the sleeve is told by its shape
     (symmetric, a cap on top) and cut as a pair, the two bodice halves
     unfolded and told front from back by their necklines (18 and 2-3 cm
-    deep), the small neck pieces left unplaced; then the T-shirt's 10 seams:
+    deep), the small neck pieces left out (the back neck binding, kept, is
+    sewn round the neck); then the T-shirt's 10 seams:
     shoulders, sides, sleeve underarms and the caps (3-8 % shorter than the
     armholes) set into the front and back armholes."""
     from couture.pattern.imported import read_pattern as read
@@ -175,9 +176,15 @@ def test_unnamed_valentina_tshirt_roles_from_shapes(flavour, front, back, sleeve
     # hips (couture.pattern.placement.fit_ring); the ASTM file's sew lines are level
     assert np.isfinite(x).all() and phi.min() > (0.0 if flavour == "astm" else -0.02)
     assert (at[f"{sleeve}_left"][:, 0] > 0.1).all() and (at[f"{sleeve}_right"][:, 0] < -0.1).all()
-    # with the neck pieces kept, they are no bodice panel: not in the torso ring
+    # with the neck pieces kept, they are no bodice panel: not in the torso ring; the back neck
+    # binding (a band as long as the back's neckline, the front's taken by the facing) goes round
+    # the neck, sewn to the back's neckline, its ends free (the neckline does not run all round)
     design, rep = build_design(read(path))
-    assert {p.name: p.placement.ring for p in design.pieces}[small[1]] == "flat"
+    rings = {p.name: p.placement.ring for p in design.pieces}
+    assert rings[small[0]] == "flat" and rings[small[1]] == "neck"
+    collar = [s for s in rep.seams if small[1] in (s.a_panel, s.b_panel)]
+    assert [(s.b_panel, "collar to the neckline" in s.reason) for s in collar] == [(back, True)]
+    assert collar[0].a_length == pytest.approx(collar[0].b_length, rel=0.02)
     assert rep.order == [front, back]
 
 

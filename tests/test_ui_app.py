@@ -640,6 +640,35 @@ def test_a_click_on_the_body_is_a_try_on_drag_target(ui):
     ui.on_tryon = None
 
 
+def test_drag_to_an_arrangement_point(ui):
+    """ "Drag to arrangement point" sends the drag that takes the panel's
+    centroid to the chosen landmark's azimuth and height on the body shown
+    (couture.pattern.landmarks); with none chosen it sends nothing and says why."""
+    from couture.pattern.landmarks import arrangement_point
+    from couture.tryon import TORSO_AXIS_POINT, UP, panel_vertices, rotation_matrix
+
+    sent: list[dict] = []
+    ui.on_tryon = sent.append
+    name = ui.demo_mesh.panel_names[0]
+    ui.tryon.panel.value = name
+    ui.tryon.point.value = "(none)"
+    assert ui.tryon.click("Drag to arrangement point") is None and not sent
+    assert "choose an arrangement point" in ui.tryon.help.content
+    assert "back_neck" in ui.tryon.point.options and "left_upper_arm" in ui.tryon.point.options
+    ui.tryon.point.value = "back_waist"
+    op = ui.tryon.click("Drag to arrangement point")
+    assert sent == [op] and op["op"] == "drag" and op["panel"] == name
+    target = arrangement_point(ui.view3d.body_name, "back_waist").position
+    c = ui.view3d.x[panel_vertices(ui.demo_mesh, name)].mean(axis=0)
+    moved = (c - TORSO_AXIS_POINT) @ rotation_matrix(UP, op["angle"]).T + TORSO_AXIS_POINT
+    moved[1] += op["vector"][1]
+    r_moved, r_t = moved - TORSO_AXIS_POINT, target - TORSO_AXIS_POINT
+    assert np.arctan2(r_moved[0], r_moved[2]) == pytest.approx(np.arctan2(r_t[0], r_t[2]), abs=1e-9)
+    assert abs(abs(np.arctan2(r_t[0], r_t[2])) - np.pi) < 1e-6  # the back: behind the torso axis
+    assert moved[1] == pytest.approx(target[1], abs=1e-12)
+    ui.on_tryon = None
+
+
 def test_body_fitted_sloper_sliders_show_the_bodys_measurements(ui):
     """A waist-seamed dress on XL drafts from XL's measured girths: the option
     sliders show them (not the mannequin's defaults), and a design's own value wins."""

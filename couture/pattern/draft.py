@@ -481,6 +481,11 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
     for ring in sloper.rings + piece_rings(design, body=design.body.name):
         for name, pl in fit_ring(ring, by_name, body=design.body.name).items():
             by_name[name].placement = pl
+    if any(pc.placement.ring == "neck" for pc in design.pieces):
+        from couture.pattern.pieces import collar_placements
+
+        for name, pl in collar_placements(design, by_name, seams, body=design.body.name).items():
+            by_name[name].placement = pl
     pattern = DraftedPattern(panels, seams)
     for i, (sp, owner) in enumerate(zip(seams, owners, strict=True)):
         ctx.seam_owner[i] = owner

@@ -54,6 +54,9 @@ class Placement:
     ``axis``/``ref``/``taper`` tilt the axis and make it a cone; the exact
     mapping is ``couture.pattern.placement.place``.
     kind 'plane': world = origin + X[:, 0] * u + X[:, 1] * v.
+    kind 'grid': world positions ``grid_pos`` at the material grid
+    ``grid_x`` x ``grid_y``, bilinear between (a collar laid on the neckline
+    it is sewn to: ``couture.pattern.pieces.collar_placements``).
     """
 
     kind: str
@@ -86,6 +89,12 @@ class Placement:
     """[m] material x at arc length 0 (theta = 0) of each row, shape (m,), wrap only"""
     rows_radius: np.ndarray | None = None
     """[m] polar radius of each row's cross-section curve, shape (m, K), wrap only"""
+    grid_x: np.ndarray | None = None
+    """[m] material x of the grid's columns, increasing, shape (nx,), grid only"""
+    grid_y: np.ndarray | None = None
+    """[m] material y of the grid's rows, increasing, shape (ny,), grid only"""
+    grid_pos: np.ndarray | None = None
+    """[m] world position of each grid point, shape (ny, nx, 3), grid only"""
 
 
 @dataclass

@@ -210,6 +210,52 @@ def arm_front_at_plus_x(arm: str) -> bool:
     return bool(np.cross(a, f)[2] > 0)
 
 
+NECK_MARGIN = 0.01
+"""[m] clearance of a collar's ring round the neck"""
+POINT_MARGIN = 0.015
+"""[m] default clearance of a piece laid at an arrangement point"""
+POINT_REACH = 0.04
+"""[m] a piece at an arrangement point clears the body's sections this far
+above and below each of its rows (``Ring.section_reach``): one piece alone
+cannot lean on its neighbours' girth, so a table row that undercuts the body
+would put it inside"""
+
+
+def point_ring(pc: Piece, body: str = "default") -> Ring:
+    """The ring of one piece laid at its arrangement point (``placement.point``,
+    :mod:`couture.pattern.landmarks`): wrapped round the body's local axis
+    there, its centre (the middle of its height and width) at the point's
+    height and angle, ``placement.clearance`` outside the body's section (the
+    piece does not shrink it: a narrow piece leaves the rest of the way round
+    open)."""
+    from couture.pattern.landmarks import arrangement_point
+    from couture.pattern.slopers.shirt import _cap_radius
+
+    if not pc.placement.point:
+        raise PatternError(pc.name, "placement ring 'point' needs an arrangement point (placement.point)")
+    try:
+        pt = arrangement_point(body, pc.placement.point)
+    except ValueError as e:
+        raise PatternError(pc.name, str(e)) from None
+    P = _array(pc, pc.outline, "outline")
+    yc = 0.5 * float(P[:, 1].min() + P[:, 1].max())
+    clear = pc.placement.clearance if pc.placement.clearance is not None else POINT_MARGIN
+    arm = pt.section.endswith("_arm")
+    return Ring(
+        [pc.name],
+        [pt.angle],
+        pt.origin - yc * pt.axis,
+        axis=pt.axis.copy(),
+        ref=pt.ref.copy(),
+        section=pt.section,
+        margin=clear,
+        min_margin=clear,
+        anchor_y=yc,
+        body_radius=_cap_radius if arm else None,
+        section_reach=POINT_REACH,
+    )
+
+
 def piece_rings(design: Design, body: str = "default") -> list[Ring]:
     """The rings of the design's ringed pieces, each in ``position`` order: the
     torso ring, its top (material y = 0) at the first piece's ``height`` [m]
@@ -218,11 +264,17 @@ def piece_rings(design: Design, body: str = "default") -> list[Ring]:
     leg's ring about that leg's axis, from its waist height likewise, open at
     the inner side (the trousers sloper's leg rings); an arm's ring about the
     arm, its top a little down from the shoulder (the shirt sloper's sleeve
-    rings)."""
+    rings); a collar's ring round the neck, its top at the first piece's
+    ``height`` on the default body, moved with the body's neck base
+    (:func:`couture.pattern.landmarks.neck`); one ring per piece laid at an
+    arrangement point (:func:`point_ring`)."""
     from couture.pattern.slopers.shirt import _arm_frame, _cap_radius
 
     rings: list[Ring] = []
-    for kind in ("torso", "band", "left_leg", "right_leg", "left_arm", "right_arm"):
+    for pc in design.pieces:
+        if pc.placement.ring == "point":
+            rings.append(point_ring(pc, body))
+    for kind in ("torso", "band", "neck", "left_leg", "right_leg", "left_arm", "right_arm"):
         ringed = sorted((pc for pc in design.pieces if pc.placement.ring == kind), key=lambda pc: pc.placement.position)
         if not ringed:
             continue
@@ -238,6 +290,20 @@ def piece_rings(design: Design, body: str = "default") -> list[Ring]:
                     section="torso",
                     landmark="waist",
                     top_rows_as_full=True,
+                )
+            )
+        elif kind == "neck":
+            # ``height``: the collar's top on the default body; fit_ring moves it with the body's neck base
+            clear = first.clearance if first.clearance is not None else NECK_MARGIN
+            rings.append(
+                Ring(
+                    names,
+                    angles,
+                    np.array([0.0, first.height, M.TORSO_AXIS_Z]),
+                    section="torso",
+                    landmark="neck",
+                    margin=clear,
+                    min_margin=min(clear, NECK_MARGIN),
                 )
             )
         elif kind.endswith("_leg"):
@@ -379,3 +445,143 @@ def with_mirrored_curve(design: Design, stroke_id: str) -> Design:
     d = copy.copy(design)
     d.strokes = [s for s in design.strokes if old is None or s.id != old.id] + [new]
     return d
+
+
+COLLAR_REACH = 0.02
+"""[m] a collar laid on its neckline clears the torso's section this far above each point (the neck leans forward)"""
+
+
+def _part_map(cm: np.ndarray, op: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One sewn part of a collar: (material x, material y, world position) of
+    its neck edge's points ``cm`` (k, 2) on the neckline ``op`` (m, 3) as
+    placed, matched by arc-length fraction, material x increasing and the
+    neckline's angle about the torso axis increasing with it."""
+    if cm[0, 0] > cm[-1, 0]:
+        cm = cm[::-1]
+    th = np.arctan2(op[:, 0], op[:, 2] - M.TORSO_AXIS_Z)
+    if (th[-1] - th[0] + np.pi) % (2 * np.pi) - np.pi < 0:
+        op = op[::-1]
+
+    def frac(Q: np.ndarray) -> np.ndarray:
+        d = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(Q, axis=0), axis=1))])
+        return d / max(d[-1], 1e-12)
+
+    u, v = frac(cm), frac(op)
+    world = np.column_stack([np.interp(u, v, op[:, c]) for c in range(3)])
+    return cm[:, 0], cm[:, 1], world
+
+
+BRIDGE_LIFT = 0.5
+"""a collar's bridge between two neckline pieces that start apart (the
+front's and the back's neck points, their shoulder seam still open) rises
+this fraction of the gap above the straight line (over the shoulder's top)"""
+
+
+def _bridged(xs: list, ys: list, ws: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sewn parts' (material x, material y, world) points in material x
+    order, one position per x: where a part starts away from where the one
+    before ended (the neckline pieces' common corner, placed apart until the
+    solver sews their seam), the collar's corner stays on the first and a
+    few points in the next fraction of a centimetre of cloth arc over to the
+    second (``BRIDGE_LIFT``), not through the body between them."""
+    parts = sorted(zip(xs, ys, ws, strict=True), key=lambda p: float(p[0][0]))
+    X, Y, W = [parts[0][0]], [parts[0][1]], [parts[0][2]]
+    for x, y, w in parts[1:]:
+        xe, A = float(X[-1][-1]), W[-1][-1]
+        B = w[0]
+        nxt = x[x > xe + 1e-9]
+        if np.linalg.norm(B - A) > 0.01 and len(nxt):
+            d = 0.4 * (float(nxt[0]) - xe)
+            sb = np.array([0.25, 0.5, 0.75, 1.0])
+            arc = (1 - sb)[:, None] * A + sb[:, None] * B
+            arc[:, 1] += BRIDGE_LIFT * float(np.linalg.norm(B - A)) * np.sin(np.pi * sb)
+            X.append(xe + d * sb)
+            Y.append(np.full(len(sb), float(Y[-1][-1])))
+            W.append(arc)
+        keep = x > float(X[-1][-1]) + 1e-9
+        X.append(x[keep])
+        Y.append(y[keep])
+        W.append(w[keep])
+    return np.concatenate(X), np.concatenate(Y), np.concatenate(W)
+
+
+def collar_placements(
+    design: Design, panels: dict[str, Panel], seams: list, body: str = "default"
+) -> dict[str, Placement]:
+    """'grid' placements of the design's collars (ring 'neck') that are sewn
+    to placed panels: the collar's neck edge laid on the neckline as its
+    pieces are placed (each sewn part on its segment, by arc-length
+    fraction; an unsewn end carried on along the neckline's tangent), the
+    collar standing straight up from it, every point above the neck's base
+    then pushed out from the torso axis to the collar's clearance outside
+    the body's section there (and ``COLLAR_REACH`` above). A neckline lower than the neck (a
+    scoop) thus gets its band where it is sewn, not round the neck; a collar
+    sewn to nothing keeps its ring round the neck. ``seams``: the drafted
+    ``SeamSpec`` list."""
+    from couture.pattern.draft import segment_points
+    from couture.pattern.placement import place
+    from couture.pattern.sections import sections
+
+    out: dict[str, Placement] = {}
+    for pc in design.pieces:
+        if pc.placement.ring != "neck" or pc.name not in panels:
+            continue
+        C = panels[pc.name]
+        segs = {g.name: g for g in C.segments}
+        xs, ys, ws = [], [], []
+        for sp in seams:
+            if sp.a_panel == pc.name and sp.b_panel != pc.name:
+                mine, other, oseg = sp.a_segment, sp.b_panel, sp.b_segment
+            elif sp.b_panel == pc.name and sp.a_panel != pc.name:
+                mine, other, oseg = sp.b_segment, sp.a_panel, sp.a_segment
+            else:
+                continue
+            P = panels.get(other)
+            if P is None or P.placement is None or P.placement.kind == "plane" or mine not in segs:
+                continue
+            pseg = next((g for g in P.segments if g.name == oseg), None)
+            if pseg is None:
+                continue
+            x, y, w = _part_map(segment_points(C, segs[mine]), place(P, segment_points(P, pseg)))
+            xs.append(x)
+            ys.append(y)
+            ws.append(w)
+        if not xs:
+            continue
+        x, y, w = _bridged(xs, ys, ws)
+        lo, hi = C.outline.min(axis=0), C.outline.max(axis=0)
+        gx = np.unique(np.concatenate([np.linspace(lo[0], hi[0], max(2, int(np.ceil((hi[0] - lo[0]) / 0.01)) + 1)), x]))
+        bottom = np.column_stack([np.interp(gx, x, w[:, c]) for c in range(3)])
+        yb = np.interp(gx, x, y)
+        # past the sewn parts (an overlap, an unsewn end): on along the neckline's end tangents
+        for end, sel in ((0, gx < x[0]), (-1, gx > x[-1])):
+            if sel.any() and len(x) > 1:
+                a, b = (0, 1) if end == 0 else (-2, -1)
+                t = (w[b] - w[a]) / max(x[b] - x[a], 1e-9)
+                t = t / max(np.linalg.norm(t), 1e-12)
+                bottom[sel] = w[end] + (gx[sel] - x[end])[:, None] * t
+        gy = np.linspace(min(lo[1], yb.min()), hi[1], max(2, int(np.ceil((hi[1] - lo[1]) / 0.01)) + 1))
+        G = bottom[None, :, :] + (gy[:, None] - yb[None, :])[:, :, None] * np.array([0.0, 1.0, 0.0])
+        # above the neck's base (the neck, leaning forward, and the jaw over it): outside the torso
+        # table's section there (and 2 cm higher) by the clearance; below it the collar rises from a
+        # neckline already outside the body, on top of the shoulders, whose horizontal sections
+        # (the shoulders' hull, the arms beside) say nothing about it
+        from couture.pattern.landmarks import neck
+
+        base = neck(body).base_y
+        sec = sections(body)["torso"]
+        clear = pc.placement.clearance if pc.placement.clearance is not None else NECK_MARGIN
+        rel = G - np.array([0.0, 0.0, M.TORSO_AXIS_Z])
+        th = np.arctan2(rel[..., 0], rel[..., 2]) % (2 * np.pi)
+        r = np.hypot(rel[..., 0], rel[..., 2])
+        t_ax = (G[..., 1] - float(sec.origin[1])).ravel()
+        K = sec.radius.shape[1]
+        R = np.maximum(sec.radii(t_ax), sec.radii(t_ax + COLLAR_REACH))
+        k = th.ravel() / (2 * np.pi) * K
+        k0 = np.floor(k).astype(int) % K
+        f = k - np.floor(k)
+        need = ((1 - f) * R[np.arange(len(k)), k0] + f * R[np.arange(len(k)), (k0 + 1) % K]).reshape(r.shape) + clear
+        scale = np.where(G[..., 1] > base, np.maximum(need / np.maximum(r, 1e-9), 1.0), 1.0)
+        G = np.array([0.0, 0.0, M.TORSO_AXIS_Z]) + rel * np.stack([scale, np.ones_like(scale), scale], axis=-1)
+        out[pc.name] = Placement("grid", np.zeros(3), grid_x=gx, grid_y=gy, grid_pos=G)
+    return out

@@ -103,8 +103,18 @@ def place(panel: Panel, points2d: np.ndarray) -> np.ndarray:
             m = j == row
             out[m] = (1 - w[m]) * _wrap_row(pl, row, P[m, 0]) + w[m] * _wrap_row(pl, row + 1, P[m, 0])
         return out
+    if pl.kind == "grid":
+        gx, gy, G = pl.grid_x, pl.grid_y, pl.grid_pos
+        assert gx is not None and gy is not None and G is not None, "a grid placement has its grid"
+        i = np.clip(np.searchsorted(gx, P[:, 0], side="right") - 1, 0, len(gx) - 2)
+        j = np.clip(np.searchsorted(gy, P[:, 1], side="right") - 1, 0, len(gy) - 2)
+        s = np.clip((P[:, 0] - gx[i]) / (gx[i + 1] - gx[i]), 0.0, 1.0)[:, None]
+        t = np.clip((P[:, 1] - gy[j]) / (gy[j + 1] - gy[j]), 0.0, 1.0)[:, None]
+        return (1 - t) * ((1 - s) * G[j, i] + s * G[j, i + 1]) + t * ((1 - s) * G[j + 1, i] + s * G[j + 1, i + 1])
     if pl.kind != "cylinder":
-        raise ValueError(f"placement kind {pl.kind!r} of panel {panel.name!r} is not 'wrap', 'cylinder' or 'plane'")
+        raise ValueError(
+            f"placement kind {pl.kind!r} of panel {panel.name!r} is not 'wrap', 'grid', 'cylinder' or 'plane'"
+        )
     a, f, b = frame(pl)
     taper = getattr(pl, "taper", 0.0)
     r = np.maximum(pl.radius - taper * P[:, 1], 1e-3)
@@ -172,9 +182,9 @@ def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str,
     landmark = getattr(ring, "landmark", None)
     if landmark is not None and body != "default":
         # the drafted origin is at the default body's landmark height: move it along the axis to this body's
-        from couture.bodies import measured
+        from couture.pattern.landmarks import landmark_y
 
-        shift = measured(body)[f"{landmark}_y"] - measured("default")[f"{landmark}_y"]
+        shift = landmark_y(body, landmark) - landmark_y("default", landmark)
         origin = origin + a * (shift / a[1])
     f = FRONT if ring.ref is None else np.asarray(ring.ref, float)
     f = f - (f @ a) * a
@@ -205,6 +215,10 @@ def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str,
                 raise ValueError("a ring needs a body section or a body_radius")
             return circle
         R = sec.radii(axial + t_off)
+        reach = getattr(ring, "section_reach", 0.0)
+        if reach > 0:
+            for dt in (-reach, -0.5 * reach, 0.5 * reach, reach):
+                R = np.maximum(R, sec.radii(axial + t_off + dt))
         # theta_ring = theta_sec - phi
         th = (2 * np.pi * np.arange(K) / K + phi) % (2 * np.pi) / (2 * np.pi) * K
         k0 = np.floor(th).astype(int) % K

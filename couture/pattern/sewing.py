@@ -62,8 +62,8 @@ WOVEN_STRETCH_STIFFNESS = 200.0
 mostly drafted for woven cloth; couture's default cotton (20 N/m) is so stretchy
 that a fitted pencil skirt's waist (FreeSewing penelope) stretches over the hips
 and the skirt falls to the floor (measured: 58 cm drop at 20 N/m, 5 cm at 200)"""
-TUBE_ROLES = ("sleeve", "cuff")
-"""pieces sewn into a tube by their own two long sides"""
+TUBE_ROLES = ("sleeve", "cuff", "binding")
+"""pieces sewn into a tube (a loop) by their own two sides"""
 ROLE_WORDS = ("waistband", "sleeve", "collar", "cuff", "yoke", "facing", "pocket", "binding", "front", "back", "side")
 
 
@@ -107,6 +107,8 @@ class _Panel:
     """'left' or 'right': a sleeve set into that armhole; '' not set in"""
     band: bool = False
     """a waistband sewn to the torso ring's top edge (placed round the body above it)"""
+    neck: bool = False
+    """a collar sewn to the neckline (placed round the neck)"""
 
 
 def role_of(name: str) -> str:
@@ -559,6 +561,8 @@ def _set_in_sleeves(panels: list[_Panel], used: set[tuple[str, str]], tolerance:
             used.update({(c.panel, c.name), (h.panel, h.name)})
         sl.arm = arm
         free_arms.remove(arm)
+    for arm in free_arms:  # no sleeve set in: a sleeveless top's armholes stay free (bound or faced)
+        used.update((h.panel, h.name) for h in armholes[arm].values())
     return out
 
 
@@ -815,6 +819,178 @@ def sew_band(panels: list[_Panel], seams: list[Suggestion], order: list[str]) ->
     return out, 2 * math.pi * sum(w[:start]) / max(sum(w), 1e-9)
 
 
+COLLAR_ROLES = ("collar", "binding")
+"""pieces that may be sewn to the neckline"""
+NECK_SLACK = 0.10
+"""a collar's neck edge may differ from the neckline it is sewn to by this
+fraction (a knit binding is cut about 5 % short and stretched on)"""
+BINDING_EASE = 0.02
+"""a binding may be at most this fraction longer than the edge it binds"""
+COLLAR_SLENDER = 4.0
+"""an unnamed piece at least this many times as long as it is wide is a band (a collar candidate)"""
+
+
+def _turn(p: _Panel, quarter: bool) -> None:
+    """Turns a panel's outline (and notches) a quarter turn (x, y) -> (-y, x) or
+    a half turn, in place, its top at y = 0 and left at x = 0 again (corner
+    indices and segment names unchanged)."""
+
+    def t(Q: np.ndarray) -> np.ndarray:
+        return np.column_stack([-Q[:, 1], Q[:, 0]]) if quarter else -Q
+
+    P = t(p.outline)
+    shift = np.array([P[:, 0].min(), P[:, 1].max()])
+    p.outline = P - shift
+    if len(p.notches):
+        p.notches = t(p.notches) - shift
+
+
+def sew_collar(
+    panels: list[_Panel], seams: list[Suggestion], order: list[str], notes: list[str], angle0: float = 0.0
+) -> tuple[list[Suggestion], float]:
+    """A collar (or a neck band, a neck binding) sewn to the neckline: the
+    torso ring's free top edges (after every other seam: the shoulders sewn,
+    the armholes taken by sleeves or left free), panel by panel round the body
+    from the opening (between a mirrored pair of fronts not sewn together,
+    else of backs; none: a closed neckline, the collar's two ends sewn into a
+    loop when the neckline runs round every bodice panel), each sewn to a
+    part of the collar's neck edge as long as it (the collar split there, an
+    overlap at the end left free). The collar: a piece
+    of role collar or binding, or an unnamed band ``COLLAR_SLENDER`` times as
+    long as wide, whose long edge is within ``NECK_SLACK`` of the neckline's
+    length (the one nearest it; the collar is turned so that edge is its
+    bottom). Removes any other seam the collar had; marks it ``neck``;
+    returns the seams and the angle [rad] of the collar's centre round the
+    neck (theta = 0 the front): each part as near the angle of its neckline
+    piece round the torso ring (its first panel centred at ``angle0``) as
+    the parts' spacing round the neck lets it be."""
+    torso = [n for n in order if any(p.name == n and p.role in ("front", "back") for p in panels)]
+    if not torso:
+        return [], 0.0
+    by = {p.name: p for p in panels}
+
+    def candidate(p: _Panel) -> bool:
+        if p.name in order or p.leg or p.arm or p.band:
+            return False
+        low = p.name.lower()
+        if re.search(r"arm|sleeve|waist|hem|cuff|leg", low) and not re.search(r"neck|collar", low):
+            return False  # named for another edge (an armhole's binding)
+        if p.role in COLLAR_ROLES:
+            return True
+        w, h = np.ptp(p.outline, axis=0)
+        return not p.role and max(w, h) >= COLLAR_SLENDER * min(w, h)
+
+    cands = [p for p in panels if candidate(p)]
+    if not cands:
+        return [], 0.0
+    # the neckline: free top edges of the bodice panels, after every seam but the collars'
+    others = [s for s in seams if s.a_panel not in {c.name for c in cands} and s.b_panel not in {c.name for c in cands}]
+    used = {(s.a_panel, s.a_segment) for s in others} | {(s.b_panel, s.b_segment) for s in others}
+    start, opening = 0, ""
+    for role in ("front", "back"):
+        for i, n in enumerate(torso):
+            prev = torso[i - 1]
+            sewn = any({s.a_panel, s.b_panel} == {n, prev} for s in others)
+            if by[n].role == role and by[prev].twin == n and not sewn:
+                start, opening = i, role
+                break
+        if opening:
+            break
+    ring = torso[start:] + torso[:start]
+    neckline: list[_Seg] = []
+    for n in ring:
+        top = [g for g in _segments(by[n]) if g.facing == "top" and (n, g.name) not in used]
+        neckline += sorted(top, key=lambda g: float(g.pts[:, 0].mean()))  # material x runs with the angle
+    W = sum(g.length for g in neckline)
+    if not neckline or W <= 0:
+        return [], 0.0
+    best: tuple[float, _Panel] | None = None
+    for c in cands:
+        w, h = np.ptp(c.outline, axis=0)
+        if h > w:
+            _turn(c, quarter=True)  # a band lies along material x (round the neck)
+        L = max((g.length for g in _segments(c) if g.facing in ("top", "bottom")), default=0.0)
+        d = abs(L / W - 1)
+        if c.role == "binding" and L > (1 + BINDING_EASE) * W:
+            continue  # a binding is stretched onto its edge, never eased
+        if d <= NECK_SLACK and (best is None or d < best[0]):
+            best = (d, c)
+    if best is None:
+        return [], 0.0
+    col = best[1]
+    # its long edge nearest the neckline's length is the neck edge: turned to the bottom
+    edge = min((g for g in _segments(col) if g.facing in ("top", "bottom")), key=lambda g: abs(g.length - W))
+    if edge.facing == "top":
+        _turn(col, quarter=False)
+    seams[:] = [s for s in seams if col.name not in (s.a_panel, s.b_panel)]
+    S = _segments(col)
+    k = max((i for i, g in enumerate(S) if g.facing == "bottom"), key=lambda i: S[i].length)
+    B = S[k].length
+    scale = min(1.0, B / W)
+    over = B > W + 0.005  # an overlap past the neckline's end, left free (a shorter rest is the last part's)
+    for g in neckline if over else neckline[:-1]:  # split off each neckline piece's length, from the start
+        _split(col, k, g.length * scale)
+        k += 1
+    S = _segments(col)
+    first = k - (len(neckline) if over else len(neckline) - 1)
+    out = [
+        Suggestion(
+            col.name,
+            S[first + j].name,
+            g.panel,
+            g.name,
+            0.8,
+            f"collar to the neckline ({j + 1} of {len(neckline)})",
+            S[first + j].length,
+            g.length,
+        )
+        for j, g in enumerate(neckline)
+    ]
+    ends = [g for g in S if g.facing in ("left", "right")]
+    round_all = {g.panel for g in neckline} == set(torso)
+    if (
+        not opening
+        and round_all
+        and len(ends) == 2
+        and abs(ends[0].length - ends[1].length) <= max(0.005, 0.03 * ends[0].length)
+    ):
+        a, b = sorted(ends, key=lambda g: g.facing != "right")
+        out.append(
+            Suggestion(col.name, a.name, col.name, b.name, 0.8, "closes the collar into a loop", a.length, b.length)
+        )
+    col.neck = True
+    notes.append(
+        f"{col.name} sewn to the neckline in {len(neckline)} part{'s' if len(neckline) > 1 else ''} ({B * 100:.1f} cm to {W * 100:.1f} cm, "
+        f"{(B / W - 1) * 100:+.0f} %), round the neck from "
+        + (
+            f"the centre {opening} opening"
+            if opening
+            else f"{neckline[0].panel}'s neckline" + (", its ends sewn" if out[-1].a_panel == out[-1].b_panel else "")
+        )
+        + "; one layer: a stand and its fall, or a collar's two plies, are not modelled"
+    )
+    # where each neckline piece lies round the torso ring (material x runs with theta) ...
+    w = {n: float(np.ptp(by[n].outline[:, 0])) for n in order}
+    total = max(sum(w.values()), 1e-9)
+    pstart, acc = {}, angle0 - math.pi * w[order[0]] / total
+    for n in order:
+        pstart[n] = acc - 2 * math.pi * float(by[n].outline[:, 0].min()) / total
+        acc += 2 * math.pi * w[n] / total
+    # ... and where its collar part's middle lies round the neck, from the collar's start
+    from couture.pattern.landmarks import neck
+
+    G = max(B, neck().girth + 2 * math.pi * 0.01)
+    lag = [
+        pstart[g.panel]
+        + 2 * math.pi * float(g.pts[:, 0].mean()) / total
+        - 2 * math.pi * (sum(h.length for h in neckline[:j]) * scale + 0.5 * g.length * scale) / G
+        for j, g in enumerate(neckline)
+    ]
+    wt = np.array([g.length for g in neckline])
+    theta_start = math.atan2(float(wt @ np.sin(lag)), float(wt @ np.cos(lag)))
+    return out, theta_start + math.pi * B / G
+
+
 def is_top(panels: list[_Panel]) -> bool:
     """A garment worn from the shoulders (has a sleeve, a collar, a yoke, or 'shirt'/'top' pieces)."""
     return any(p.role in ("sleeve", "collar", "yoke") for p in panels) or any(
@@ -1010,7 +1186,9 @@ def build_design(
     panels = panels_of(kept)
     seams = [s for s in suggest_seams(panels) if s.confidence >= min_confidence]
     order = ring_order(panels, seams)
-    lm = landmark or ("shoulder" if is_top(panels) else "waist")
+    # a top: sleeves, a collar, a shirt's name, or shoulders sewn (a sleeveless top)
+    shoulders = any(s.reason.startswith("shoulders") for s in seams)
+    lm = landmark or ("shoulder" if is_top(panels) or shoulders else "waist")
     if lm not in ("waist", "shoulder"):
         raise PatternError("landmark", f"landmark {lm!r} is not 'waist' or 'shoulder'")
     m0 = measured("default")
@@ -1026,6 +1204,8 @@ def build_design(
         angle0 = float(math.pi * w[0] / max(sum(w), 1e-9))
     band_seams, opening = ([], 0.0) if lm != "waist" else sew_band(panels, seams, order)
     seams += band_seams
+    collar_seams, collar_angle = sew_collar(panels, seams, order, notes, angle0) if lm == "shoulder" else ([], 0.0)
+    seams += collar_seams
     rings = {n: "torso" for n in pos}
     for p in panels:
         if p.leg:
@@ -1036,6 +1216,8 @@ def build_design(
             rings[p.name], pos[p.name] = f"{p.arm}_arm", 0
         elif p.band:
             rings[p.name], pos[p.name] = "band", 0
+        elif p.neck:
+            rings[p.name], pos[p.name] = "neck", 0
     for kind in ("left_leg", "right_leg", "left_arm", "right_arm"):
         on = sorted((n for n, r in rings.items() if r == kind), key=lambda n: pos[n])
         if on:
@@ -1048,6 +1230,25 @@ def build_design(
         b = next(p for p in panels if p.band)
         band_angle = float(start + math.pi * np.ptp(b.outline[:, 0]) / max(sum(w), 1e-9))
         notes.append(f"{b.name} sewn to the waist in {len(band_seams)} parts, round the body from the opening")
+    from couture.pattern.landmarks import neck
+
+    nk = neck("default")
+    neck_base = nk.base_y
+    for p in panels:
+        if p.neck and float(np.ptp(p.outline[:, 1])) > nk.top_y - nk.base_y:
+            notes.append(
+                f"{p.name} stands {np.ptp(p.outline[:, 1]) * 100:.1f} cm from the neck's base, above the jaw "
+                f"({(nk.top_y - nk.base_y) * 100:.1f} cm up): placed round the head's section there; a collar "
+                "that folds down (its fall) is not modelled"
+            )
+    unplaced = [p.name for p in panels if p.name not in rings and p.role in ("facing", "binding")]
+    if unplaced:
+        notes.append(
+            f"{', '.join(unplaced)}: a facing or binding not sewn to a neckline; laid on its edge or inside "
+            "the piece it faces (two layers at one place) is not modelled: left out of the design"
+        )
+        seams = [s for s in seams if s.a_panel not in unplaced and s.b_panel not in unplaced]
+        panels = [p for p in panels if p.name not in unplaced]
     out_pieces = []
     for p in panels:
         out_pieces.append(
@@ -1062,8 +1263,14 @@ def build_design(
                 placement=PiecePlacement(
                     ring=rings.get(p.name, "flat"),  # type: ignore[arg-type]
                     position=pos.get(p.name, 0),
-                    angle=angle0 if rings.get(p.name) == "torso" else (band_angle if p.band else 0.0),
-                    height=height + float(np.ptp(p.outline[:, 1])) if p.band else height,
+                    angle=angle0
+                    if rings.get(p.name) == "torso"
+                    else (band_angle if p.band else collar_angle if p.neck else 0.0),
+                    height=height + float(np.ptp(p.outline[:, 1]))
+                    if p.band
+                    else neck_base + float(np.ptp(p.outline[:, 1]))
+                    if p.neck
+                    else height,
                 ),
             )
         )

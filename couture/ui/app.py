@@ -162,6 +162,7 @@ class CoutureUI:
             self.server3d.gui,
             lambda op: self.on_tryon and self.on_tryon(op),
             drape=lambda: (self.view3d.mesh, self.view3d.x),
+            body=lambda: self.view3d.body_name,
         )
         self.adjust = AdjustPanel(
             self.server3d,

@@ -4,7 +4,11 @@ fix or release it; sew the next seam or unsew the last; start sequential
 sewing with no seam sewn. A click on the body in the 3D view picks a point
 (its ray against the body's ellipsoid proxy, couture.ui.geometry.pick_body);
 "Drag to picked point" then slides the panel around and along the body until
-its centroid is at that point's azimuth and height. Each button hands one op (the fields of a
+its centroid is at that point's azimuth and height; "Drag to arrangement point"
+does the same for the named body landmark chosen in the "arrangement point"
+list (couture.pattern.landmarks: 'front_waist', 'back_neck', ..., measured on
+the body shown; a design file places a piece there before any drape with
+``placement.ring = 'point'``). Each button hands one op (the fields of a
 ``couture/tryon/v1`` message) to ``on_op``; the solver applies it to its
 drape and re-solves."""
 
@@ -17,6 +21,7 @@ import numpy as np
 import viser
 
 NO_PANEL = "(none)"
+NO_POINT = "(none)"
 
 TryOnOp = dict[str, Any]
 """op, panel, vector [m or axis], angle [rad], seam, sewn (TryOnMsg's fields)"""
@@ -28,9 +33,13 @@ class TryOnPanel:
         gui: viser.GuiApi,
         on_op: Callable[[TryOnOp], None],
         drape: Callable[[], tuple[Any, Any]] = lambda: (None, None),
+        body: Callable[[], str] = lambda: "default",
     ):
-        """``drape()``: (mesh, x) on screen, for a panel's outward direction."""
-        self.on_op, self.drape = on_op, drape
+        """``drape()``: (mesh, x) on screen, for a panel's outward direction;
+        ``body()``: the body shown (its arrangement points)."""
+        from couture.pattern.landmarks import point_names
+
+        self.on_op, self.drape, self.body = on_op, drape, body
         self.target = None
         """the BodyPick a click on the body made (couture.ui.geometry), or None"""
         with gui.add_folder("Try-on", expand_by_default=False):
@@ -38,6 +47,7 @@ class TryOnPanel:
             self.panel = gui.add_dropdown("panel", (NO_PANEL,), initial_value=NO_PANEL)
             self.step_cm = gui.add_number("step [cm]", 2.0, min=0.1, max=30.0, step=0.1)
             self.angle_deg = gui.add_number("angle [deg]", 10.0, min=0.5, max=180.0, step=0.5)
+            self.point = gui.add_dropdown("arrangement point", (NO_POINT, *point_names()), initial_value=NO_POINT)
             buttons: list[tuple[str, Callable[[], TryOnOp | None]]] = [
                 ("Move out", lambda: self._panel_op("move", vector=self._outward())),
                 ("Move up", lambda: self._panel_op("move", vector=[0.0, self._step(), 0.0])),
@@ -50,6 +60,7 @@ class TryOnPanel:
                 ("Drag up", lambda: self._panel_op("drag", vector=[0.0, self._step(), 0.0])),
                 ("Drag down", lambda: self._panel_op("drag", vector=[0.0, -self._step(), 0.0])),
                 ("Drag to picked point", self._to_target),
+                ("Drag to arrangement point", self._to_point),
                 ("Fix", lambda: self._panel_op("fix")),
                 ("Unfix", lambda: self._panel_op("unfix")),
                 ("Sew next seam", lambda: {"op": "sew", "seam": -1}),
@@ -104,20 +115,33 @@ class TryOnPanel:
     def _to_target(self) -> TryOnOp | None:
         """A drag of the panel about the torso axis and along it that takes
         its centroid (on screen) to the picked point's azimuth and height."""
-        from couture.tryon import TORSO_AXIS_POINT, panel_vertices
-
         if self.target is None:
             self.help.content = "**drag to picked point**: click the body first."
             return None
+        return self._drag_to(np.asarray(self.target.point), "drag to picked point")
+
+    def _to_point(self) -> TryOnOp | None:
+        """The drag to the chosen arrangement point (its place on the body shown)."""
+        from couture.pattern.landmarks import arrangement_point
+
+        name = str(self.point.value)
+        if name == NO_POINT:
+            self.help.content = "**drag to arrangement point**: choose an arrangement point first."
+            return None
+        return self._drag_to(arrangement_point(self.body(), name).position, "drag to arrangement point")
+
+    def _drag_to(self, point: np.ndarray, what: str) -> TryOnOp | None:
+        from couture.tryon import TORSO_AXIS_POINT, panel_vertices
+
         op = self._panel_op("drag")
         if op is None:
             return None
         mesh, x = self.drape()
         if mesh is None or x is None or op["panel"] not in mesh.panel_names:
-            self.help.content = "**drag to picked point**: no drape of that panel on screen."
+            self.help.content = f"**{what}**: no drape of that panel on screen."
             return None
         c = np.asarray(x)[panel_vertices(mesh, op["panel"])].mean(axis=0) - TORSO_AXIS_POINT
-        t = np.asarray(self.target.point) - TORSO_AXIS_POINT
+        t = np.asarray(point) - TORSO_AXIS_POINT
         turn = math.atan2(t[0], t[2]) - math.atan2(c[0], c[2])  # about +y, counter-clockwise from above
         turn = (turn + math.pi) % (2.0 * math.pi) - math.pi
         return {**op, "angle": turn, "vector": [0.0, float(t[1] - c[1]), 0.0]}

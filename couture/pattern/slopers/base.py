@@ -65,7 +65,13 @@ class Ring:
     landmark: str | None = None
     """'waist': ``origin`` lies at the default mannequin's waist height, and on
     another body the ring moves along its axis to that body's waist
-    (``couture.bodies.measured``); None: placed where drafted on every body"""
+    (``couture.bodies.measured``); 'neck': likewise at the neck's base
+    (``couture.pattern.landmarks.neck``); None: placed where drafted on every body"""
+    section_reach: float = 0.0
+    """[m] each row's body radii are the largest of the section table's within
+    this distance along the axis (a margin against a table row that
+    undercuts the body: the default mannequin's leg table 2.4 cm at the
+    thigh's front, 11 cm below the crotch); 0: the row's own"""
 
 
 @dataclass

@@ -4,6 +4,7 @@
 # into a cache and compares with the committed files; a remake overwrites them.
 #   FreeSewing 4.10.2 (npm ci of package.json + package-lock.json beside this
 #   script): penelope (skirt), titan (trousers), teagan (a top with sleeves),
+#   aaron (a sleeveless top with a neck binding and arm bindings),
 #   each drafted for two @freesewing/models measurement sets, rendered to SVG
 #   with seam allowances (the importer must tell them apart), and the sets as JSON;
 #   Valentina (Debian's package, installed with apt where missing): two examples
@@ -65,7 +66,7 @@ draft_freesewing() {
     exit 1
   fi
   node freesewing.mjs out
-  cp out/penelope_*.svg out/titan_*.svg out/teagan_*.svg out/cis*.json "$OUT/freesewing/"
+  cp out/penelope_*.svg out/titan_*.svg out/teagan_*.svg out/aaron_*.svg out/cis*.json "$OUT/freesewing/"
 }
 
 install_valentina() {
