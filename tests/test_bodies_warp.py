@@ -16,7 +16,8 @@ import pytest
 import trimesh
 
 from couture import bodies
-from couture.bodies.warp import check_measurements, warp_body
+from couture.bodies import warp_to as warp_body
+from couture.bodies.warp import check_measurements
 from couture.pattern.errors import PatternError
 from couture.pattern.sewing import fs_measurements
 from schemas.design import Body, Design

@@ -140,11 +140,9 @@ def custom_dir(name: str) -> Path:
 
 
 def _build(folder: Path, name: str, meas: dict[str, float]) -> None:
-    from couture.bodies.make import write_obj
     from couture.bodies.measure import measure
-    from couture.bodies.warp import warp_body
 
-    r = warp_body(meas)
+    r = warp_to(meas)
     folder.mkdir(parents=True, exist_ok=True)
     tmp = folder / f"body.obj.{os.getpid()}.tmp"
     write_obj(
@@ -168,6 +166,16 @@ def _build(folder: Path, name: str, meas: dict[str, float]) -> None:
     tmp = folder / f"body.json.{os.getpid()}.tmp"
     tmp.write_text(json.dumps(rec, indent=2) + "\n")
     tmp.replace(folder / "body.json")  # last: its presence says the folder is whole
+
+
+def warp_to(target: dict[str, float], template: str | None = None, **kw: Any):
+    """:func:`couture.bodies.warp.warp_body` of the shipped body ``template``
+    (default the one whose girths are nearest ``target``'s)."""
+    from couture.bodies.warp import check_measurements, nearest_template, warp_body
+
+    target = check_measurements(target)
+    template = template or nearest_template(target, {n: measured(n) for n in shipped_names()})
+    return warp_body(target, template, load_mesh(template), measured(template), **kw)
 
 
 def custom_record(name: str) -> dict[str, Any]:
@@ -194,6 +202,14 @@ def sections_path(name: str = "default") -> Path:
     if check_name(name) in _CUSTOM:
         return custom_dir(name) / f"sections_v{SECTIONS_VERSION}.npz"
     return DEFAULT_SECTIONS if name == "default" else BODIES_DIR / f"{name}.sections.npz"
+
+
+def write_obj(path: Path, V, F, header: str) -> None:
+    """A body mesh as Wavefront OBJ: ``header`` as comments, vertices [m], faces."""
+    lines = [f"# {h}" for h in header.splitlines()]
+    lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in V]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in F]
+    path.write_text("\n".join(lines) + "\n")
 
 
 def _read(path: Path, process: bool):

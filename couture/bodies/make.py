@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 
-from couture.bodies import BODIES_DIR, DEFAULT_FLOOR_Y, SIZE_TABLE, SIZE_TABLE_SOURCE
+from couture.bodies import BODIES_DIR, DEFAULT_FLOOR_Y, SIZE_TABLE, SIZE_TABLE_SOURCE, write_obj
 from couture.bodies.measure import MEASURES, landmarks, measure
 
 PHENOTYPES = ("height", "weight")
@@ -63,11 +63,11 @@ def make_warped(
     """Write the body ``name`` of measurements ``target`` [m] made without Anny
     (couture.bodies.warp: the nearest shipped body warped to them) to ``out``:
     <name>.obj, <name>.sections.npz (``write_sections``) and its bodies.json entry."""
-    from couture.bodies.warp import warp_body
+    from couture.bodies import warp_to
 
     if name == "default" or not name.replace("_", "").replace("-", "").isalnum():
         raise ValueError(f"body name {name!r}: use letters, digits, '-' or '_', and not 'default'")
-    r = warp_body(target)
+    r = warp_to(target)
     out.mkdir(parents=True, exist_ok=True)
     obj = out / f"{name}.obj"
     write_obj(
@@ -190,13 +190,6 @@ def fit_body(
             + " within 1 cm with its height, weight and measurement targets"
         )
     return V, F, dict(zip(PARAMS, theta.tolist(), strict=True)), measured
-
-
-def write_obj(path: Path, V: np.ndarray, F: np.ndarray, header: str) -> None:
-    lines = [f"# {h}" for h in header.splitlines()]
-    lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in V]
-    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in F]
-    path.write_text("\n".join(lines) + "\n")
 
 
 def make_graded(

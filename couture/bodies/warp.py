@@ -121,13 +121,11 @@ class WarpResult:
     """per iteration: the girth errors [m]"""
 
 
-def nearest_template(target: dict[str, float]) -> str:
-    """The shipped body whose girths are nearest ``target``'s (rms over the requested girths)."""
-    from couture import bodies
-
+def nearest_template(target: dict[str, float], candidates: dict[str, dict[str, float]]) -> str:
+    """The body of ``candidates`` ({name: its measurements}) whose girths are
+    nearest ``target``'s (rms over the requested girths); ties keep the first."""
     best, best_d = "default", math.inf
-    for name in bodies.shipped_names():
-        m = bodies.measured(name)
+    for name, m in candidates.items():
         d = sum((m[k] - target[k]) ** 2 for k in GIRTHS if k in target)
         if d < best_d - 1e-12:
             best, best_d = name, d
@@ -274,19 +272,22 @@ def check_warp(template: tuple[np.ndarray, np.ndarray], warped: np.ndarray, m0: 
 
 
 def warp_body(
-    target: dict[str, float], template: str | None = None, tol: float = 0.002, max_iter: int = 15
+    target: dict[str, float],
+    template: str,
+    mesh: tuple[np.ndarray, np.ndarray],
+    template_measured: dict[str, float],
+    tol: float = 0.002,
+    max_iter: int = 15,
 ) -> WarpResult:
     """The body whose measured MEASURES are within ``tol`` [m] of ``target``'s
     (a subset of MEASURES [m]; see :func:`check_measurements`), warped from
-    ``template`` (a shipped body; default the nearest). Deterministic.
-    ValueError naming what cannot be reached."""
-    from couture import bodies
-
+    the shipped body ``template`` (its ``mesh`` (V, F) and measurements;
+    :func:`couture.bodies.warp_to` picks the nearest and loads them).
+    Deterministic. ValueError naming what cannot be reached."""
     t0 = time.perf_counter()
     target = check_measurements(target)
-    template = template or nearest_template(target)
-    V0, F = bodies.load_mesh(template)
-    m0 = bodies.measured(template)
+    V0, F = mesh
+    m0 = dict(template_measured)
     for k in GIRTHS:
         if k in target and not 1 / MAX_FACTOR <= target[k] / m0[k] <= MAX_FACTOR:
             raise ValueError(

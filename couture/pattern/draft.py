@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from couture.pattern.drafted import DraftedPattern, Panel, SeamSpec, Segment
+from couture.pattern.drafted import DraftedPattern, Panel, SeamSpec, Segment, segment_points
 from couture.pattern.errors import PatternError
 from couture.pattern.geometry import Curve
 from couture.pattern.options import resolve
@@ -502,16 +502,6 @@ def option_values(design: Design) -> dict:
 
 def _has(panel: Panel, name: str) -> bool:
     return any(s.name == name for s in panel.segments)
-
-
-def segment_points(panel: Panel, seg: Segment) -> np.ndarray:
-    """Polyline vertices of a segment, start to stop inclusive (wrapping)."""
-    P = panel.outline if seg.hole < 0 else panel.holes[seg.hole]
-    k = len(P)
-    n = (seg.stop - seg.start) % k
-    if n == 0:
-        n = k if seg.hole >= 0 and seg.start == seg.stop else 0
-    return P[(seg.start + np.arange(n + 1)) % k]
 
 
 def find_segment(pattern: DraftedPattern, panel: str, name: str, element: str) -> tuple[Panel, Segment]:

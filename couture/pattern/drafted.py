@@ -154,3 +154,13 @@ class PanelJacobian:
     """shape (k, 2, 2)"""
     holes: list[np.ndarray] = field(default_factory=list)
     """each shape (h, 2, 2)"""
+
+
+def segment_points(panel: Panel, seg: Segment) -> np.ndarray:
+    """Polyline vertices of a segment, start to stop inclusive (wrapping)."""
+    P = panel.outline if seg.hole < 0 else panel.holes[seg.hole]
+    k = len(P)
+    n = (seg.stop - seg.start) % k
+    if n == 0:
+        n = k if seg.hole >= 0 and seg.start == seg.stop else 0
+    return P[(seg.start + np.arange(n + 1)) % k]

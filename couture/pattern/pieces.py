@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from couture.pattern import mannequin as M
-from couture.pattern.drafted import Panel, Placement, Segment
+from couture.pattern.drafted import Panel, Placement, Segment, segment_points
 from couture.pattern.errors import PatternError
 from couture.pattern.geometry import signed_area
 from couture.pattern.slopers.base import Ring
@@ -518,7 +518,6 @@ def collar_placements(
     scoop) thus gets its band where it is sewn, not round the neck; a collar
     sewn to nothing keeps its ring round the neck. ``seams``: the drafted
     ``SeamSpec`` list."""
-    from couture.pattern.draft import segment_points
     from couture.pattern.placement import place
     from couture.pattern.sections import sections
 
