@@ -134,7 +134,9 @@ class PiecePlacement(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     there): pieces of one ring are wrapped round one axis in ``position``
     order, tiling the body's section there (``couture.pattern.placement.fit_ring``)."""
 
-    ring: Literal["torso", "band", "neck", "left_leg", "right_leg", "left_arm", "right_arm", "point", "flat"] = "torso"
+    ring: Literal[
+        "torso", "band", "neck", "left_leg", "right_leg", "left_arm", "right_arm", "point", "inside", "flat"
+    ] = "torso"
     """'torso': round the torso, theta = 0 at the front; 'left_leg' /
     'right_leg': round that leg (a trouser leg's front and back, open at the
     inner side above the crotch, where the other leg's panels join); 'left_arm'
@@ -144,6 +146,8 @@ class PiecePlacement(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     it is sewn to as the other pieces are placed, or, sewn to nothing, round
     the neck, its neck edge (its bottom) at the body's neck base
     (``couture.pattern.landmarks``);
+    'inside': a facing laid just inside the piece it is sewn to (its seams
+    say which; ``clearance`` nearer the body than that piece, default 3 mm);
     'point': one piece laid with its centre at the arrangement point
     ``point`` and wrapped round the body's local axis there (CLO's
     arrangement points);

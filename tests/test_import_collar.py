@@ -204,3 +204,40 @@ def test_neck_landmarks_on_every_body():
         nk = neck(body)
         assert measured(body)["underarm_y"] + 0.08 < nk.base_y < nk.narrow_y < nk.top_y, body
         assert 0.3 < nk.girth < 0.7, body
+
+
+@pytest.mark.parametrize("flavour", ["astm"])  # AAMA's cut lines: the facing's edge is 5 cm too long to pair
+def test_a_facing_is_laid_just_inside_the_piece_it_faces(flavour):
+    """Valentina's TShirt_test kept whole: its small front neck facing (sewn
+    to the front's neckline) is laid just inside the front (ring 'inside'):
+    outside the body, within 3 cm of the front's vertices and nearer the torso axis than
+    the front there, its sewn edge on the front's neckline; `couture import`
+    says the two layers do not collide."""
+    from scipy.spatial import cKDTree
+
+    from couture.pattern.draft import segment_points
+    from couture.pattern.placement import place
+
+    path = FS.parent / "valentina" / f"TShirt_test_{flavour}.dxf"
+    facing, front = ("Detail", "Detail_2") if flavour == "astm" else ("piece1", "piece2")
+    design, rep = build_design(read_pattern(path))
+    assert {p.name: p.placement.ring for p in design.pieces}[facing] == "inside"
+    assert any(
+        n.startswith(f"{facing}: a facing, laid just inside {front}") and "no cloth-cloth" in n for n in rep.notes
+    )
+    x, phi, at = _placed(design)
+    assert phi.min() > 0.0
+    F, R = at[facing], at[front]
+    d, j = cKDTree(R).query(F)
+    assert d.max() < 0.03  # the nearest front vertex (the coarse mesh: 2-3 cm apart)
+    radius = np.hypot(F[:, 0], F[:, 2] - 0.04) - np.hypot(R[j, 0], R[j, 2] - 0.04)
+    assert np.median(radius) < -0.001  # inside the front
+    drafted = validate(design)
+    panels = {p.name: p for p in drafted.panels}
+    (s,) = [s for s in rep.seams if facing in (s.a_panel, s.b_panel)]
+    mine, theirs = (
+        (s.a_segment, (s.b_panel, s.b_segment)) if s.a_panel == facing else (s.b_segment, (s.a_panel, s.a_segment))
+    )
+    a = place(panels[facing], segment_points(*_seg(panels, facing, mine)))
+    b = place(panels[theirs[0]], segment_points(*_seg(panels, *theirs)))
+    assert np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2).min(axis=1).max() < 0.01  # on the neckline

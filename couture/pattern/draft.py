@@ -486,6 +486,11 @@ def draft_with_context(design: Design, spacing: float = SPACING) -> tuple[Drafte
 
         for name, pl in collar_placements(design, by_name, seams, body=design.body.name).items():
             by_name[name].placement = pl
+    if any(pc.placement.ring == "inside" for pc in design.pieces):
+        from couture.pattern.pieces import inside_placements
+
+        for name, pl in inside_placements(design, by_name, seams).items():
+            by_name[name].placement = pl
     pattern = DraftedPattern(panels, seams)
     for i, (sp, owner) in enumerate(zip(seams, owners, strict=True)):
         ctx.seam_owner[i] = owner

@@ -165,7 +165,7 @@ def piece_panels(design: Design) -> list[Panel]:
     x = -0.5
     for pc in design.pieces:
         p = piece_panel(pc)
-        if pc.placement.ring == "flat":
+        if pc.placement.ring in ("flat", "inside"):  # a facing: flat until laid inside its piece
             lo, hi = p.outline.min(0), p.outline.max(0)
             p.placement = Placement(
                 "plane",
@@ -583,4 +583,90 @@ def collar_placements(
         scale = np.where(G[..., 1] > base, np.maximum(need / np.maximum(r, 1e-9), 1.0), 1.0)
         G = np.array([0.0, 0.0, M.TORSO_AXIS_Z]) + rel * np.stack([scale, np.ones_like(scale), scale], axis=-1)
         out[pc.name] = Placement("grid", np.zeros(3), grid_x=gx, grid_y=gy, grid_pos=G)
+    return out
+
+
+FACING_INSET = 0.003
+"""[m] a facing lies this much nearer its ring's axis than the piece it faces
+(a ring piece keeps at least 7 mm from the body's section: 4 mm are left)"""
+
+
+def _fit_2d(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The rigid motion (rotation or reflection Q, translation t) taking the
+    points A (k, 2) nearest to B (k, 2) in least squares, and its rms residual [m]."""
+    ca, cb = A.mean(axis=0), B.mean(axis=0)
+    U, _, Vt = np.linalg.svd((A - ca).T @ (B - cb))
+    Q = U @ Vt  # reflections allowed: a facing may be drawn mirrored
+    t = cb - ca @ Q
+    return Q, t, float(np.sqrt(((A @ Q + t - B) ** 2).sum(axis=1).mean()))
+
+
+def inside_placements(design: Design, panels: dict[str, Panel], seams: list) -> dict[str, Placement]:
+    """'grid' placements of the design's facings (ring 'inside'): each laid
+    on the piece it is sewn to (the one with the longest seam to it), its
+    material mapped into that piece's by the rigid motion (a reflection
+    allowed) that best lays its sewn edges on the edges they are sewn to (by
+    arc-length fraction), placed as that piece's points there, then moved
+    ``placement.clearance`` (default ``FACING_INSET``) toward that piece's
+    ring axis. The two layers do not collide with each other in the solvers
+    (no cloth-cloth contact). A facing sewn to no wrapped piece lies flat."""
+    from couture.pattern.draft import segment_points
+    from couture.pattern.placement import frame, place
+
+    out: dict[str, Placement] = {}
+    for pc in design.pieces:
+        if pc.placement.ring != "inside" or pc.name not in panels:
+            continue
+        Fc = panels[pc.name]
+        segs = {g.name: g for g in Fc.segments}
+        by_other: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+        for sp in seams:
+            if sp.a_panel == pc.name and sp.b_panel != pc.name:
+                mine, other, oseg = sp.a_segment, sp.b_panel, sp.b_segment
+            elif sp.b_panel == pc.name and sp.a_panel != pc.name:
+                mine, other, oseg = sp.b_segment, sp.a_panel, sp.a_segment
+            else:
+                continue
+            P = panels.get(other)
+            if P is None or P.placement is None or P.placement.kind != "wrap" or mine not in segs:
+                continue
+            pseg = next((g for g in P.segments if g.name == oseg), None)
+            if pseg is not None:
+                by_other.setdefault(other, []).append((segment_points(Fc, segs[mine]), segment_points(P, pseg)))
+        if not by_other:
+            continue
+
+        sewn = {
+            o: sum(float(np.linalg.norm(np.diff(b, axis=0), axis=1).sum()) for _, b in v) for o, v in by_other.items()
+        }
+        other = max(sewn, key=lambda o: sewn[o])
+        P = panels[other]
+        pl = P.placement
+        assert pl is not None, "only placed pieces are faced"
+        A_pts, B_pts = [], []
+        for a, b in by_other[other]:
+            u = np.linspace(0.0, 1.0, 21)
+
+            def at(Q: np.ndarray, u: np.ndarray = u) -> np.ndarray:
+                d = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(Q, axis=0), axis=1))])
+                d = d / max(d[-1], 1e-12)
+                return np.column_stack([np.interp(u, d, Q[:, 0]), np.interp(u, d, Q[:, 1])])
+
+            A_pts.append(at(a))
+            # a seam joins its two segments one way or the other: the one the rigid fit takes better
+            fwd, bwd = at(b), at(b[::-1])
+            B_pts.append(fwd if _fit_2d(at(a), fwd)[2] <= _fit_2d(at(a), bwd)[2] else bwd)
+        Q, t, _ = _fit_2d(np.vstack(A_pts), np.vstack(B_pts))
+        lo, hi = Fc.outline.min(axis=0), Fc.outline.max(axis=0)
+        gx = np.linspace(lo[0], hi[0], max(2, int(np.ceil((hi[0] - lo[0]) / 0.01)) + 1))
+        gy = np.linspace(lo[1], hi[1], max(2, int(np.ceil((hi[1] - lo[1]) / 0.01)) + 1))
+        X, Y = np.meshgrid(gx, gy)
+        M2 = np.column_stack([X.ravel(), Y.ravel()]) @ Q + t
+        W = place(P, M2)
+        a, _, _ = frame(pl)
+        rel = W - np.asarray(pl.origin, float)
+        radial = rel - (rel @ a)[:, None] * a
+        inset = pc.placement.clearance if pc.placement.clearance is not None else FACING_INSET
+        W = W - inset * radial / np.maximum(np.linalg.norm(radial, axis=1, keepdims=True), 1e-12)
+        out[pc.name] = Placement("grid", np.zeros(3), grid_x=gx, grid_y=gy, grid_pos=W.reshape(len(gy), len(gx), 3))
     return out

@@ -1241,11 +1241,27 @@ def build_design(
                 f"({(nk.top_y - nk.base_y) * 100:.1f} cm up): placed round the head's section there; a collar "
                 "that folds down (its fall) is not modelled"
             )
+    # a facing (or a small unnamed piece) sewn to a placed piece: laid just inside it
+    placed = set(rings)
+    for p in panels:
+        small = not p.role and max(np.ptp(p.outline, axis=0)) < SMALL_PIECE
+        if p.name in rings or not (p.role == "facing" or small):
+            continue
+        faced = sorted(
+            {s.b_panel for s in seams if s.a_panel == p.name and s.b_panel in placed}
+            | {s.a_panel for s in seams if s.b_panel == p.name and s.a_panel in placed}
+        )
+        if faced:
+            rings[p.name], pos[p.name] = "inside", 0
+            notes.append(
+                f"{p.name}: a facing, laid just inside {', '.join(faced)} (the piece it is sewn to); the two "
+                "layers do not collide with each other (no cloth-cloth contact): it may pass through"
+            )
     unplaced = [p.name for p in panels if p.name not in rings and p.role in ("facing", "binding")]
     if unplaced:
         notes.append(
-            f"{', '.join(unplaced)}: a facing or binding not sewn to a neckline; laid on its edge or inside "
-            "the piece it faces (two layers at one place) is not modelled: left out of the design"
+            f"{', '.join(unplaced)}: a facing or binding sewn to no placed piece; a binding folded over its "
+            "edge is not modelled: left out of the design"
         )
         seams = [s for s in seams if s.a_panel not in unplaced and s.b_panel not in unplaced]
         panels = [p for p in panels if p.name not in unplaced]
