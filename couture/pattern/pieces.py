@@ -610,7 +610,6 @@ def inside_placements(design: Design, panels: dict[str, Panel], seams: list) -> 
     ``placement.clearance`` (default ``FACING_INSET``) toward that piece's
     ring axis. The two layers do not collide with each other in the solvers
     (no cloth-cloth contact). A facing sewn to no wrapped piece lies flat."""
-    from couture.pattern.draft import segment_points
     from couture.pattern.placement import frame, place
 
     out: dict[str, Placement] = {}
