@@ -13,9 +13,10 @@ node runs it, publishing its initial design as the node does for
 1. the page's pattern view shows the imported pieces (their labels), and its
    status the converged fine drape of that design (level, solver, residual,
    'converged', its generation): a screenshot is taken;
-2. a piece's corner handle (the hem corner farthest from the piece's middle)
-   is dragged outward in the pattern view: the UI commits the edited design,
-   and a new converged fine drape of it replaces the first on screen.
+2. a piece's corner handle (the corner farthest from the piece's middle) is
+   dragged outward in the pattern view: the UI commits the edited design (a
+   'Cut 2' half moves its twin, mirrored), and a new converged fine drape of
+   it replaces the first on screen.
 
 ``run`` returns the figures (times, iterations, residuals, vertex counts);
 ``tests/test_import_ui_browser.py`` asserts them, and :func:`main` writes
@@ -380,6 +381,14 @@ def run(
                         if a.outline != b.outline
                     ),
                 }
+                twin = next((pc for pc in edited_msg.design.pieces if pc.mirror_of == h.panel), None)
+                if twin is not None:  # a 'Cut 2' half: its twin is the mirror image of the edited half
+                    from couture.pattern.pieces import mirror_outline
+
+                    out["drag"]["twin"] = twin.name
+                    out["drag"]["twin_mirror_gap_m"] = float(
+                        np.abs(mirror_outline(after, twin) - np.asarray(twin.outline)).max()
+                    )
                 _log(f"drag: {out['drag']}")
                 coarse2, fine2 = _converged_fine(sess, edited_msg.design_id, timeout, "the edited design")
                 gen2 = fine2.generation
