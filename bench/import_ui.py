@@ -419,7 +419,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--name", default=None, help="picture name: ui_<name>.png (default: the pattern's stem)")
     ap.add_argument("--coarse", type=int, default=300)
     ap.add_argument("--fine", type=int, default=400)
-    ap.add_argument("--out", type=Path, default=RESULTS_DIR / "import", help="folder (default: %(default)s)")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=RESULTS_DIR / "import",
+        metavar="DIR",
+        help="results folder: writes ui_<name>.json and ui_<name>.png there (default: %(default)s)",
+    )
     a = ap.parse_args(argv)
     body = a.body if a.body is not None else (DEFAULT_BODY if a.pattern == DEFAULT_PATTERN else None)
     name = a.name or a.pattern.stem
