@@ -419,6 +419,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--name", default=None, help="picture name: ui_<name>.png (default: the pattern's stem)")
     ap.add_argument("--coarse", type=int, default=300)
     ap.add_argument("--fine", type=int, default=400)
+    ap.add_argument("--timeout", type=float, default=120.0, help="[s] to wait for each converged fine drape")
     ap.add_argument(
         "--out",
         type=Path,
@@ -429,7 +430,7 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     body = a.body if a.body is not None else (DEFAULT_BODY if a.pattern == DEFAULT_PATTERN else None)
     name = a.name or a.pattern.stem
-    res = run(a.pattern, body, coarse=a.coarse, fine=a.fine, screenshot=a.out / f"ui_{name}.png")
+    res = run(a.pattern, body, coarse=a.coarse, fine=a.fine, screenshot=a.out / f"ui_{name}.png", timeout=a.timeout)
     res["picture"] = f"ui_{name}.png"
     print(write_results(a.out, f"ui_{name}", res).read_text())
     return 0
