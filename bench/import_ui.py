@@ -13,9 +13,10 @@ node runs it, publishing its initial design as the node does for
 1. the page's pattern view shows the imported pieces (their labels), and its
    status the converged fine drape of that design (level, solver, residual,
    'converged', its generation): a screenshot is taken;
-2. a piece's corner handle (the hem corner farthest from the piece's middle)
-   is dragged outward in the pattern view: the UI commits the edited design,
-   and a new converged fine drape of it replaces the first on screen.
+2. a piece's corner handle (the corner farthest from the piece's middle) is
+   dragged outward in the pattern view: the UI commits the edited design (a
+   'Cut 2' half moves its twin, mirrored), and a new converged fine drape of
+   it replaces the first on screen.
 
 ``run`` returns the figures (times, iterations, residuals, vertex counts);
 ``tests/test_import_ui_browser.py`` asserts them, and :func:`main` writes
@@ -380,6 +381,14 @@ def run(
                         if a.outline != b.outline
                     ),
                 }
+                twin = next((pc for pc in edited_msg.design.pieces if pc.mirror_of == h.panel), None)
+                if twin is not None:  # a 'Cut 2' half: its twin is the mirror image of the edited half
+                    from couture.pattern.pieces import mirror_outline
+
+                    out["drag"]["twin"] = twin.name
+                    out["drag"]["twin_mirror_gap_m"] = float(
+                        np.abs(mirror_outline(after, twin) - np.asarray(twin.outline)).max()
+                    )
                 _log(f"drag: {out['drag']}")
                 coarse2, fine2 = _converged_fine(sess, edited_msg.design_id, timeout, "the edited design")
                 gen2 = fine2.generation
@@ -410,11 +419,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--name", default=None, help="picture name: ui_<name>.png (default: the pattern's stem)")
     ap.add_argument("--coarse", type=int, default=300)
     ap.add_argument("--fine", type=int, default=400)
-    ap.add_argument("--out", type=Path, default=RESULTS_DIR / "import", help="folder (default: %(default)s)")
+    ap.add_argument("--timeout", type=float, default=120.0, help="[s] to wait for each converged fine drape")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=RESULTS_DIR / "import",
+        metavar="DIR",
+        help="results folder: writes ui_<name>.json and ui_<name>.png there (default: %(default)s)",
+    )
     a = ap.parse_args(argv)
     body = a.body if a.body is not None else (DEFAULT_BODY if a.pattern == DEFAULT_PATTERN else None)
     name = a.name or a.pattern.stem
-    res = run(a.pattern, body, coarse=a.coarse, fine=a.fine, screenshot=a.out / f"ui_{name}.png")
+    res = run(a.pattern, body, coarse=a.coarse, fine=a.fine, screenshot=a.out / f"ui_{name}.png", timeout=a.timeout)
     res["picture"] = f"ui_{name}.png"
     print(write_results(a.out, f"ui_{name}", res).read_text())
     return 0

@@ -1,12 +1,14 @@
-"""An imported pattern draped in the real UI (``bench/import_ui.py``): Valentina's
-Keiko skirt (ASTM DXF, keiko.json's measurements) through ``couture import``
-at 300/400 vertices, the remesher and Newton solver nodes as processes on a
+"""An imported pattern draped in the real UI (``bench/import_ui.py``):
+FreeSewing's titan trousers (cisMaleAdult38) through ``couture import`` at
+300/400 vertices, the remesher and Newton solver nodes as processes on a
 real Zenoh session, the UI and its bus adapter as the ui node runs them, the
-page in a headless Debian chromium. The page shows both pieces and the status
-of a converged fine drape of the imported design; a piece's corner handle
-dragged in the page commits the edited design (exactly ``apply_edit`` of the
-corner's motion, that piece alone), and a new converged fine drape of it
-follows on the page."""
+page in a headless Debian chromium. The page shows the four pieces (two
+'Cut 2' pairs) and the status of a converged fine drape of the imported
+design; a piece's corner handle dragged in the page commits the edited
+design (exactly ``apply_edit`` of the corner's motion: that half and its
+twin, the mirror image to 1e-12 m), and a new converged fine drape of it
+follows on the page. (``python -m bench.import_ui`` runs the same on
+Valentina's Keiko skirt for bench/results/import/ui_keiko.png.)"""
 
 from __future__ import annotations
 
@@ -27,29 +29,36 @@ pytestmark = [
     ),
 ]
 
+FS = import_ui.ROOT / "tests" / "data" / "imported" / "freesewing"
 FINE_TOL = 1e-4
 """the solver's fine-level tolerance (relative residual)"""
 
 
-def test_imported_skirt_drapes_in_the_ui_and_a_corner_drag_redrapes_it():
+def test_imported_trousers_drape_in_the_ui_and_a_corner_drag_redrapes_both_halves():
     ARTIFACTS.mkdir(exist_ok=True)
     r = import_ui.run(
-        screenshot=ARTIFACTS / "ui_import_keiko.png", edited_screenshot=ARTIFACTS / "ui_import_keiko_edited.png"
+        FS / "titan_cisMaleAdult38.svg",
+        FS / "cisMaleAdult38.json",
+        screenshot=ARTIFACTS / "ui_import_titan.png",
+        edited_screenshot=ARTIFACTS / "ui_import_titan_edited.png",
     )
     print(r)
-    assert r["pieces"] == ["piece1", "piece2"] and r["seams"] == 2
+    assert sorted(r["pieces"]) == ["back_left", "back_right", "front_left", "front_right"] and r["seams"] == 6
     first, second, drag = r["first"], r["second"], r["drag"]
     for level in ("coarse", "fine"):
         assert first[level]["converged"] and second[level]["converged"], (first, second)
     assert first["fine"]["residual"] < FINE_TOL and second["fine"]["residual"] < FINE_TOL
     assert 300 < first["fine"]["vertices"] < 1000
-    # the mannequin is the body the design names (keiko.json's nearest, XS), not the default
-    assert r["body"] == {"design": "XS", "shown": "XS"}
-    # the page drew both pieces (their fill under most of a grid inside each outline)
+    # the mannequin is the body the design names (the set's nearest), not the default
+    assert r["body"]["shown"] == r["body"]["design"] != "default"
+    # the page drew every piece (their fill under most of a grid inside each outline)
     assert min(r["piece_fill"][n] for n in r["pieces"]) > 0.8
-    # the drag: the corner went outward, the design committed is apply_edit's, one piece changed
+    # the drag: the corner went outward, the design committed is apply_edit's, and the
+    # 'Cut 2' half moved its twin as its mirror image
+    half = drag["element"].split(":")[1]
     assert drag["outward"] and max(abs(c) for c in drag["moved_m"]) > 0.005
-    assert drag["apply_edit_gap_m"] < 1e-12 and drag["pieces_edited"] == [drag["element"].split(":")[1]]
+    assert drag["apply_edit_gap_m"] < 1e-12
+    assert drag["pieces_edited"] == sorted([half, drag["twin"]]) and drag["twin_mirror_gap_m"] < 1e-12
     # a new design, draped again: a later generation whose drape moved
     assert second["fine"]["generation"] > first["fine"]["generation"]
     assert second["drape_moved_m"] is None or second["drape_moved_m"] > 0.002

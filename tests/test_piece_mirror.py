@@ -182,6 +182,11 @@ def test_a_pair_that_is_not_mirrored_is_refused_and_an_old_design_edits_each_hal
     _piece(lone, "back_right").mirror_of = "nope"
     with pytest.raises(PatternError, match="does not name it back"):
         draft(lone)
+    short = copy.deepcopy(penelope)
+    _piece(short, "back_right").outline = _piece(short, "back_right").outline[:-1]
+    c = _piece(short, "back_left").corners[2]
+    with pytest.raises(PatternError, match="back_left: has 225 outline points, its mirror 'back_right' 224"):
+        apply_edit(short, f"pt:back_left:{c}", [0.001, 0.0])  # refused before any point moves
     # a design written before the field: no mirror_of, each half edits alone
     raw = json.loads(design_to_json(penelope))
     assert any(pc.get("mirror_of") for pc in raw["design"]["pieces"])

@@ -769,9 +769,9 @@ def test_a_drape_before_its_mesh_is_shown_when_the_mesh_comes(tmp_path):
     """A late joiner gets the session's meshes and drapes on separate
     subscriptions, in any order: a fine drape taken before the fine mesh is
     held and shown (the page's frame marker set) once that mesh arrives, not
-    dropped (the solve is over: no other drape comes; the marker stayed at
-    data-seq 0 in tests/test_adjust_browser.py runs). A newer drape shown
-    meanwhile wins over the held one."""
+    dropped (the solve is over: no other drape comes, and the page's marker
+    would stay at data-seq 0). A held fine drape outlives its own design's
+    coarse drape shown meanwhile; a newer drape of its level wins over it."""
     import dataclasses
 
     ui = CoutureUI(UIConfig(port=free_port(), export_dir=tmp_path, show_body=False, draft_locally=False))
@@ -789,14 +789,24 @@ def test_a_drape_before_its_mesh_is_shown_when_the_mesh_comes(tmp_path):
         assert wait_for(lambda: ui.on_screen is not None and ui.on_screen.tag == "fine drape")
         assert 'data-seq="1"' in ui.status.frame_html.content
         np.testing.assert_allclose(ui.view3d.x, fine.x0 + [0.0, 0.0, 0.01])
-        # held, then overtaken: a drape for the mesh on screen is newer, the held one is dropped
+        # a held fine drape outlives a coarse drape of its own design shown meanwhile
+        fine2, _ = demo_sheet(900)
+        fine2 = dataclasses.replace(fine2, level="fine", generation=2)
+        ui.show_drape(fine2.x0 + [0.0, 0.0, 0.02], "fine", "newton", generation=2, tag="fine 2")
+        time.sleep(0.3)
+        ui.show_drape(coarse.x0, "coarse", "newton", generation=2, tag="coarse 2")
+        assert wait_for(lambda: ui.on_screen.tag == "coarse 2")
+        assert ui.frames_pushed == 2 and ui.renderer.waiting.tag == "fine 2"  # its mesh is not here yet
+        ui.show_mesh(fine2)
+        assert wait_for(lambda: ui.on_screen.tag == "fine 2")
+        # held, then overtaken: a drape of the same level is newer, the held one is dropped
         other, _ = demo_sheet(600)
         other = dataclasses.replace(other, level="coarse")
-        assert other.n_vertices not in (coarse.n_vertices, fine.n_vertices)
+        assert other.n_vertices not in (coarse.n_vertices, fine.n_vertices, fine2.n_vertices)
         ui.show_drape(other.x0, "coarse", "newton", tag="held")
         time.sleep(0.3)
         assert ui.renderer.waiting is not None and ui.renderer.waiting.tag == "held"
-        ui.show_drape(fine.x0, "fine", "newton", tag="newer")
+        ui.show_drape(fine2.x0, "fine", "newton", generation=2, tag="newer")
         assert wait_for(lambda: ui.on_screen.tag == "newer")
         ui.show_mesh(other)
         time.sleep(0.3)

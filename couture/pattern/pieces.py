@@ -336,8 +336,9 @@ def mirror_twin(design: Design, piece: Piece) -> tuple[int, Piece] | None:
     if not piece.mirror_of:
         return None
     j = next((j for j, pc in enumerate(design.pieces) if pc.name == piece.mirror_of), None)
-    if j is None:
-        raise PatternError(piece.name, f"mirror_of names no piece {piece.mirror_of!r}")
+    if j is None or design.pieces[j] is piece:
+        raise PatternError(piece.name, f"mirror_of names no other piece {piece.mirror_of!r}")
+    _check_pair(piece, design.pieces[j])
     return j, design.pieces[j]
 
 
@@ -384,34 +385,33 @@ def check_mirror_pairs(design: Design) -> None:
     """Refuse a design whose 'Cut 2' pairs (``Piece.mirror_of``) do not name
     each other or are not mirror images (point count, corners, outline to
     ``MIRROR_TOL``), naming the pieces and the first point off."""
-    by = {pc.name: pc for pc in design.pieces}
     for pc in design.pieces:
-        if not pc.mirror_of:
-            continue
-        tw = by.get(pc.mirror_of)
-        if tw is None or tw is pc:
-            raise PatternError(pc.name, f"mirror_of names no other piece {pc.mirror_of!r}")
-        if tw.mirror_of != pc.name or tw.mirror_index != pc.mirror_index:
-            raise PatternError(
-                pc.name,
-                f"is marked the mirror of {tw.name!r}, which does not name it back with the same mirror_index "
-                f"({tw.mirror_of!r}, {tw.mirror_index} against {pc.mirror_index})",
-            )
-        k = len(pc.outline)
-        if len(tw.outline) != k:
-            raise PatternError(pc.name, f"has {k} outline points, its mirror {tw.name!r} {len(tw.outline)}")
-        if not 0 <= pc.mirror_index < k:
-            raise PatternError(pc.name, f"mirror_index {pc.mirror_index} is not an outline index in [0, {k})")
-        if sorted(int(c) for c in twin_points(pc, _corners(pc))) != _corners(tw):
-            raise PatternError(pc.name, f"its corners are not the mirror of {tw.name!r}'s")
-        gap = np.linalg.norm(mirror_outline(pc, tw) - np.asarray(tw.outline, float), axis=1)
-        j = int(np.argmax(gap))
-        if gap[j] > MIRROR_TOL:
-            raise PatternError(
-                pc.name,
-                f"point {j} of its mirror {tw.name!r} is {1e3 * gap[j]:.3g} mm off the mirror image of its point "
-                f"{int(twin_points(pc, [j])[0])}: a 'Cut 2' pair edits as one (edit one, or drop mirror_of from both)",
-            )
+        mirror_twin(design, pc)
+
+
+def _check_pair(pc: Piece, tw: Piece) -> None:
+    """Refuse a pair that does not name each other or is not mirrored (see :func:`check_mirror_pairs`)."""
+    if tw.mirror_of != pc.name or tw.mirror_index != pc.mirror_index:
+        raise PatternError(
+            pc.name,
+            f"is marked the mirror of {tw.name!r}, which does not name it back with the same mirror_index "
+            f"({tw.mirror_of!r}, {tw.mirror_index} against {pc.mirror_index})",
+        )
+    k = len(pc.outline)
+    if len(tw.outline) != k:
+        raise PatternError(pc.name, f"has {k} outline points, its mirror {tw.name!r} {len(tw.outline)}")
+    if not 0 <= pc.mirror_index < k:
+        raise PatternError(pc.name, f"mirror_index {pc.mirror_index} is not an outline index in [0, {k})")
+    if sorted(int(c) for c in twin_points(pc, _corners(pc))) != _corners(tw):
+        raise PatternError(pc.name, f"its corners are not the mirror of {tw.name!r}'s")
+    gap = np.linalg.norm(mirror_outline(pc, tw) - np.asarray(tw.outline, float), axis=1)
+    j = int(np.argmax(gap))
+    if gap[j] > MIRROR_TOL:
+        raise PatternError(
+            pc.name,
+            f"point {j} of its mirror {tw.name!r} is {1e3 * gap[j]:.3g} mm off the mirror image of its point "
+            f"{int(twin_points(pc, [j])[0])}: a 'Cut 2' pair edits as one (edit one, or drop mirror_of from both)",
+        )
 
 
 def with_mirrored_curve(design: Design, stroke_id: str) -> Design:

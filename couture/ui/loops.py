@@ -49,9 +49,10 @@ class DrapeRenderer:
         """called (on this thread) after each drape reached the view"""
         self.waiting: DrapeFrame | None = None
         """the newest drape whose mesh had not arrived when it was taken: shown
-        once that mesh is here, unless a newer drape was shown first (a late
-        joiner gets the session's meshes and drapes on separate subscriptions,
-        in any order; a finished solve sends no other drape)"""
+        once that mesh is here, unless a drape that supersedes it was shown
+        first (any but a coarse drape of its own design under a held fine one; a late joiner
+        gets the session's meshes and drapes on separate subscriptions, in any
+        order, and a finished solve sends no other drape)"""
 
     def run(self, stop: threading.Event) -> None:
         last_push = 0.0
@@ -94,7 +95,9 @@ class DrapeRenderer:
         if mesh is not self.view3d.mesh:
             self.view3d.set_mesh(mesh)
         self.view3d.set_x(frame.x)
-        self.waiting = None  # anything held is older than this
+        w = self.waiting
+        if w is not None and not (w.level == "fine" and frame.level == "coarse" and w.generation >= frame.generation):
+            self.waiting = None  # superseded; a held fine drape outlives its own design's coarse one
         self.on_screen = frame
         self.frames_pushed += 1
         self.status.show_frame(frame, self.frames_pushed)
