@@ -25,6 +25,7 @@ def test_ui_shows_and_sews_imported_pieces(tmp_path):
         ui.show_pattern(pat)
         assert ui.design is design
         assert ui.controls.params == {}  # no sloper options: the last sloper's sliders are gone
+        assert ui.controls.sloper.value == "none" and ui.controls.sloper.options[0] == "none"  # not 'skirt'
         got = []
         ui.on_design_changed = got.append
         a, b = pat.panels[1], pat.panels[2]

@@ -40,10 +40,7 @@ class Controls:
         self.on_design, self.on_solver, self.on_field = on_design, on_solver, on_field
         d = design()
         with gui.add_folder("Garment"):
-            kinds = sloper_kinds()
-            self.sloper = gui.add_dropdown(
-                "sloper", tuple(kinds), initial_value=d.sloper.kind if d.sloper.kind in kinds else kinds[0]
-            )
+            self.sloper = gui.add_dropdown("sloper", self._sloper_choices(d), initial_value=d.sloper.kind)
             on_user_change(self.sloper, self.sloper_chosen)
             from couture import bodies
 
@@ -88,10 +85,13 @@ class Controls:
 
     def show_design(self, d: Design) -> None:
         """Mirror a design (assignments run no user callbacks: see on_user_change)."""
-        if self.sloper.value != d.sloper.kind and d.sloper.kind in self.sloper.options:
+        choices = self._sloper_choices(d)
+        if tuple(self.sloper.options) != choices:
+            self.sloper.options = choices
+        if self.sloper.value != d.sloper.kind:
             self.sloper.value = d.sloper.kind  # type: ignore[misc]  # viser has the setter; mypy misses it
             self._build_option_sliders(d)
-        elif d.sloper.kind not in self.sloper.options and self.params:
+        elif self.params and not sloper_options(d.sloper.kind):
             self._build_option_sliders(d)  # free-form pieces only (an imported pattern): no sloper options
         values = option_values(d)  # a sloper drafted from the body follows the body
         for name, h in self.params.items():
@@ -145,8 +145,17 @@ class Controls:
 
     # -- what the designer did -> a new design
 
+    @staticmethod
+    def _sloper_choices(d: Design) -> tuple[str, ...]:
+        """The sloper dropdown's entries: the slopers, and first the design's own
+        kind when it is none of them ('none': an imported design of pieces)."""
+        kinds = tuple(sloper_kinds())
+        return kinds if d.sloper.kind in kinds else (d.sloper.kind, *kinds)
+
     def sloper_chosen(self) -> None:
         d = self.design()
+        if str(self.sloper.value) == d.sloper.kind:
+            return
         new = msgspec.structs.replace(
             d, sloper=msgspec.structs.replace(d.sloper, kind=str(self.sloper.value), params={})
         )
