@@ -13,7 +13,8 @@ node runs it, publishing its initial design as the node does for
 1. the page's pattern view shows the imported pieces (their labels), and its
    status the converged fine drape of that design (level, solver, residual,
    'converged', its generation): a screenshot is taken;
-2. a piece's corner handle (the corner farthest from the piece's middle) is
+2. a piece's corner handle (the corner farthest from the piece's middle; of
+   a 'Cut 2' half where the pattern has one) is
    dragged outward in the pattern view: the UI commits the edited design (a
    'Cut 2' half moves its twin, mirrored), and a new converged fine drape of
    it replaces the first on screen.
@@ -329,6 +330,8 @@ def run(
                 wait_until(lambda: ui.handles_for is not None and len(v2.handles) > 0, 30, page)
                 pat = ui.pattern
                 piece_names = set(out["pieces"])
+                halves = {pc.name for pc in design.pieces if pc.mirror_of}  # a 'Cut 2' half, where there is one
+                piece_names = (piece_names & halves) or piece_names
                 i, h = max(
                     ((i, h) for i, h in enumerate(v2.handles) if h.kind == "pt" and h.panel in piece_names),
                     key=lambda ih: float(
