@@ -46,7 +46,8 @@ def measure(design_path: Path, drape_dir: Path) -> tuple[dict, object, np.ndarra
 
     design = load_design(design_path)
     drafted = validate(design)
-    mesh = mesh_pattern(drafted, design.resolution.fine_vertices, level="fine").mesh
+    meshed = mesh_pattern(drafted, design.resolution.fine_vertices, level="fine")
+    mesh = meshed.mesh
     x, tris = read_obj(drape_dir / "drape.obj")
     if x.shape[0] != mesh.n_vertices or not np.array_equal(tris, np.asarray(mesh.tris)):
         raise ValueError(f"{drape_dir}: the drape's mesh ({x.shape[0]} vertices) is not the design's fine mesh")
@@ -70,6 +71,17 @@ def measure(design_path: Path, drape_dir: Path) -> tuple[dict, object, np.ndarra
         "inside": int((phi < 0).sum()),
         "diagnosis": info.get("diagnosis", ""),
     }
+    torso = {pc.name for pc in design.pieces if pc.placement.ring == "torso"}
+    on = np.isin(np.asarray(mesh.panel_names)[meshed.vertex_panel], sorted(torso))
+    if on.any():
+        # where the torso ring's pieces start and end (a top that rides up: docs/import.md)
+        from couture.pattern.landmarks import neck
+
+        x0 = np.asarray(mesh.x0)[on]
+        row["torso_placed_top_hem_y"] = [float(x0[:, 1].max()), float(x0[:, 1].min())]
+        row["torso_draped_top_hem_y"] = [float(x[on, 1].max()), float(x[on, 1].min())]
+        row["torso_mean_rise_m"] = float((x[on, 1] - x0[:, 1]).mean())
+        row["neck_base_y"] = neck(design.body.name).base_y
     return row, mesh, x, (design, drafted)
 
 

@@ -3,7 +3,7 @@ draped in the real UI, and a piece corner dragged there.
 
 What a user does, with the real parts: ``couture import`` writes the design
 (its resolution set small, ``--coarse``/``--fine`` vertices), the remesher and
-the Newton solver node run as processes on a real Zenoh session (as
+a solver node (Newton; ``--solver kinetic``: the kinetic one) run as processes on a real Zenoh session (as
 ``couture up`` starts them; the sensitivity node is left out: nothing here
 reads its predictions), the UI (``CoutureUI`` with its bus adapter, as the ui
 node runs it, publishing its initial design as the node does for
@@ -48,7 +48,8 @@ from schemas.design import Design, Resolution
 VALENTINA = ROOT / "tests" / "data" / "imported" / "valentina"
 DEFAULT_PATTERN = VALENTINA / "Keiko_skirt_astm.dxf"
 DEFAULT_BODY = VALENTINA / "keiko.json"
-NODES = ("remesher", "solver-newton")
+SOLVER = "newton"
+"""the solver node's solver (``couture up --solver NAME``'s node ``solver-NAME``)"""
 DRAG_PX = 15.0
 """[page pixels] how far the corner handle is dragged, outward from the piece's middle"""
 
@@ -118,8 +119,8 @@ class Seen:
 
 
 @contextlib.contextmanager
-def ui_session(design: Design, export_dir: Path) -> Iterator[dict[str, Any]]:
-    """The remesher and Newton solver nodes (processes, a real Zenoh session)
+def ui_session(design: Design, export_dir: Path, solver: str = SOLVER) -> Iterator[dict[str, Any]]:
+    """The remesher and a solver node (``solver``: Newton by default) (processes, a real Zenoh session)
     and an in-process UI on that session with ``design`` as its initial
     design, published once as the ui node does."""
     from couture import supervisor
@@ -128,7 +129,8 @@ def ui_session(design: Design, export_dir: Path) -> Iterator[dict[str, Any]]:
     from couture.ui import CoutureUI, UIConfig
     from nodes.ui.main import UIAdapter
 
-    nodes = [n for n in supervisor.default_nodes(solvers=["newton"], ui=False) if n.name in NODES]
+    names = ("remesher", f"solver-{solver}")
+    nodes = [n for n in supervisor.default_nodes(solvers=[solver], ui=False) if n.name in names]
     cfg = supervisor.SupervisorConfig(
         bus=BusConfig(session=f"i{uuid.uuid4().hex[:8]}", listen=[f"tcp/127.0.0.1:{free_port()}"]), nodes=nodes
     )
@@ -136,7 +138,7 @@ def ui_session(design: Design, export_dir: Path) -> Iterator[dict[str, Any]]:
     with supervisor.Supervisor(cfg) as sup, Client(bus=sup.child_bus) as client:
         seen = Seen()
         seen.attach(client.bus)
-        client.wait_nodes(list(NODES), timeout=90)
+        client.wait_nodes(list(names), timeout=90)
         ui.start()
         try:
             with Node("ui", sup.child_bus, kind="ui", install_signals=False) as node:
@@ -264,6 +266,7 @@ def run(
     screenshot: Path | None = None,
     edited_screenshot: Path | None = None,
     timeout: float = 120.0,
+    solver: str = SOLVER,
 ) -> dict[str, Any]:
     """Import, drape in the UI, drag a corner, drape again (see the module
     doc); returns the figures. Raises when a step is not seen in the page."""
@@ -273,7 +276,8 @@ def run(
     from couture.pattern import apply_edit
 
     out: dict[str, Any] = {
-        "pattern": str(Path(pattern).relative_to(ROOT)) if Path(pattern).is_absolute() else str(pattern)
+        "pattern": str(Path(pattern).relative_to(ROOT)) if Path(pattern).is_absolute() else str(pattern),
+        "solver": solver,
     }
     t_all = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="couture-import-ui-") as tmp:
@@ -283,7 +287,7 @@ def run(
         out["pieces"] = [pc.name for pc in design.pieces]
         out["seams"] = sum(st.kind == "seam" for st in design.strokes)
         t = time.monotonic()
-        with ui_session(design, Path(tmp) / "exports") as sess:
+        with ui_session(design, Path(tmp) / "exports", solver) as sess:
             ui, adapter, seen = sess["ui"], sess["adapter"], sess["seen"]
             out["nodes_up_s"] = round(time.monotonic() - t, 2)
             t = time.monotonic()
@@ -309,7 +313,7 @@ def run(
                 # tests/test_adjust_browser.py), and the pattern view draws every imported piece
                 gen1 = fine1.generation
                 f3.get_by_text(
-                    re.compile(rf"fine solve by solver-newton.*converged, generation {gen1}\b")
+                    re.compile(rf"fine solve by solver-{solver}.*converged, generation {gen1}\b")
                 ).first.wait_for(timeout=90_000)
                 _log(f"status in {time.monotonic() - t:.1f} s")
                 out["body"] = {"design": design.body.name, "shown": ui.view3d.body_name}
@@ -396,7 +400,7 @@ def run(
                 coarse2, fine2 = _converged_fine(sess, edited_msg.design_id, timeout, "the edited design")
                 gen2 = fine2.generation
                 f3.get_by_text(
-                    re.compile(rf"fine solve by solver-newton.*converged, generation {gen2}\b")
+                    re.compile(rf"fine solve by solver-{solver}.*converged, generation {gen2}\b")
                 ).first.wait_for(timeout=60_000)
                 x1, x2 = np.asarray(fine1.x.numpy()), np.asarray(fine2.x.numpy())
                 out["second"] = {
@@ -423,6 +427,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--coarse", type=int, default=300)
     ap.add_argument("--fine", type=int, default=400)
     ap.add_argument("--timeout", type=float, default=120.0, help="[s] to wait for each converged fine drape")
+    ap.add_argument("--solver", default=SOLVER, help="the solver node's solver (default: %(default)s)")
     ap.add_argument(
         "--out",
         type=Path,
@@ -433,7 +438,15 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     body = a.body if a.body is not None else (DEFAULT_BODY if a.pattern == DEFAULT_PATTERN else None)
     name = a.name or a.pattern.stem
-    res = run(a.pattern, body, coarse=a.coarse, fine=a.fine, screenshot=a.out / f"ui_{name}.png", timeout=a.timeout)
+    res = run(
+        a.pattern,
+        body,
+        coarse=a.coarse,
+        fine=a.fine,
+        screenshot=a.out / f"ui_{name}.png",
+        timeout=a.timeout,
+        solver=a.solver,
+    )
     res["picture"] = f"ui_{name}.png"
     print(write_results(a.out, f"ui_{name}", res).read_text())
     return 0

@@ -165,6 +165,14 @@ class PiecePlacement(msgspec.Struct, kw_only=True, forbid_unknown_fields=True):
     arm: ignored, the sleeve's top hangs from the shoulder; 'neck': the top
     on the default body, moved with the body's neck base on another; 'point':
     ignored, the point gives the height)"""
+    landmark: Literal["waist", "neck"] = "waist"
+    """ring 'torso' (read from the ring's first piece): the body landmark its
+    ``height`` moves with on another body than the default: 'waist' (a skirt,
+    trousers: the height is the default body's waist region) or 'neck' (a
+    top: the height is the default body's neck base, where the shoulders'
+    neck ends lie; on another body the ring moves with its neck base, and
+    down where the armholes' bottoms would otherwise not clear its
+    armpits, ``couture.pattern.placement.ARMPIT_CLEAR``)"""
     point: str = ""
     """ring 'point': the arrangement point's name ('front_waist', 'back_neck',
     'left_upper_arm', ...: ``couture.pattern.landmarks.point_names``)"""

@@ -98,7 +98,9 @@ def test_neck_binding_sewn_round_the_neckline_and_laid_on_it(stem):
         # each part's neck edge on its neckline piece (the ends where the shoulder seams still gape excepted)
         d = np.linalg.norm(a[1:-1, None, :] - b[None, :, :], axis=2).min(axis=1)
         assert np.median(d) < 0.005, (s.b_panel, np.median(d))
-    assert c[:, 1].min() < nk.base_y - 0.10
+    # the scoop's centre 9.6 cm below the straps' tops, which start at or a little below the neck's
+    # base: round the neck, the binding's lowest point would be at the base
+    assert c[:, 1].min() < nk.base_y - 0.05
 
 
 def _seg(panels, panel: str, name: str):

@@ -143,6 +143,46 @@ def test_tshirt_sleeves_set_into_the_armholes(stem):
 
 
 @pytest.mark.parametrize(
+    ("pattern", "measurements"),
+    [
+        ("freesewing/teagan_cisFemaleAdult34.svg", "freesewing/cisFemaleAdult34.json"),
+        ("freesewing/teagan_cisFemaleAdult42.svg", "freesewing/cisFemaleAdult42.json"),
+        ("freesewing/aaron_cisMaleAdult38.svg", "freesewing/cisMaleAdult38.json"),
+        ("valentina/TShirt_test_astm.dxf", None),
+    ],
+)
+def test_tops_start_at_the_neck_base_clear_of_arms_and_shoulders(pattern, measurements):
+    """A top's ring moves with the body's neck base (the shoulders' neck ends
+    there), not with its waist (before: 3.4 cm below the default body's neck
+    base, 6-7 cm below a graded or warped body's), and down, a row at a time,
+    only as far as keeps its cloth above the waist clear of the arms and
+    shoulders: on the set's own body (FreeSewing) or the default."""
+    from couture.bodies import measured
+    from couture.pattern.landmarks import neck
+    from couture.pattern.placement import ARMPIT_STEPS, ROW_SPACING
+    from couture.pattern.sewing import body_of_measurements
+
+    data = FS.parent
+    body = "default"
+    if measurements:
+        body, _ = body_of_measurements(json.loads((data / measurements).read_text()), name=Path(measurements).stem)
+    design, rep = build_design(read_pattern(data / pattern), body=body, exclude=("piece4",))
+    assert rep.landmark == "shoulder"
+    torso = [p for p in design.pieces if p.placement.ring == "torso"]
+    assert torso and all(p.placement.landmark == "neck" for p in torso)
+    assert torso[0].placement.height == pytest.approx(neck("default").base_y)
+    x, phi, at = _placed(design)
+    name = design.body.name
+    base, waist = neck(name).base_y, float(measured(name)["waist_y"])
+    top = max(float(at[p.name][:, 1].max()) for p in torso)
+    assert base - ARMPIT_STEPS * ROW_SPACING - 1e-6 <= top <= base + 1e-6, (top, base)
+    upper = x[:, 1] >= waist
+    assert phi[upper].min() > 0.0
+    if body == "default":
+        assert top > base - 0.015  # the T-shirt's straps clear the default body's shoulders 1 cm down
+
+
+@pytest.mark.parametrize(
     ("flavour", "front", "back", "sleeve", "small"),
     [
         ("astm", "Detail_2", "Detail_3", "Detail_4", ("Detail", "piece4")),

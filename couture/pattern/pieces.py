@@ -210,6 +210,9 @@ def arm_front_at_plus_x(arm: str) -> bool:
     return bool(np.cross(a, f)[2] > 0)
 
 
+ARMPIT_CLEAR = 0.003
+"""[m] a top's sides and straps start at least this far from the body's
+surface, its arms and shoulders included (``couture.pattern.slopers.base.Ring.armpit_clear``)"""
 NECK_MARGIN = 0.01
 """[m] clearance of a collar's ring round the neck"""
 POINT_MARGIN = 0.015
@@ -282,14 +285,16 @@ def piece_rings(design: Design, body: str = "default") -> list[Ring]:
         names = [pc.name for pc in ringed]
         angles = [first.angle] + [0.0] * (len(ringed) - 1)
         if kind in ("torso", "band"):
+            top = kind == "torso" and first.landmark == "neck"
             rings.append(
                 Ring(
                     names,
                     angles,
                     np.array([0.0, first.height, M.TORSO_AXIS_Z]),
                     section="torso",
-                    landmark="waist",
+                    landmark="neck" if top else "waist",
                     top_rows_as_full=True,
+                    armpit_clear=ARMPIT_CLEAR if top else None,
                 )
             )
         elif kind == "neck":

@@ -158,6 +158,54 @@ def _grow_to(base: np.ndarray, girth: float, lo: float = 0.0) -> np.ndarray:
     return base + d
 
 
+def _full_row(widths: np.ndarray) -> int | None:
+    """The highest row (index) that every panel crosses at half its widest or
+    more, widths (panels, rows); None when no row does."""
+    full = np.all(widths >= 0.5 * widths.max(axis=1, keepdims=True), axis=0)
+    return int(np.nonzero(full)[0].max()) if full.any() else None
+
+
+CHECK_SPACING = 0.01
+"""[m] spacing of the points along a row checked against the body"""
+ARMPIT_STEPS = 10
+"""a top's ring moves down at most this many row spacings to clear the body"""
+
+
+def _in_body(outlines, ys, rows, origin, a, f, b, R, axial, x0, body: str, clear: float) -> bool:
+    """Whether any cloth of the laid-out ring on the rows ``rows`` (every
+    ``CHECK_SPACING`` between its panels' outline crossings there) lies within
+    ``clear`` [m] of ``body``'s surface (its distance field, arms included)."""
+    from couture.cloth.body import load_mannequin_sdf
+
+    pts = []
+    for p, o in enumerate(outlines):
+        q0, q1 = o, np.roll(o, -1, axis=0)
+        ya, yb = q0[:, 1], q1[:, 1]
+        for i in rows:
+            cross = (np.minimum(ya, yb) <= ys[i]) & (np.maximum(ya, yb) > ys[i])
+            if not cross.any():
+                continue
+            t = (ys[i] - ya[cross]) / np.where(yb[cross] != ya[cross], yb[cross] - ya[cross], 1.0)
+            x = np.sort(q0[cross, 0] + t * (q1[cross, 0] - q0[cross, 0]))
+            # the cloth between pairs of crossings, every CHECK_SPACING
+            x = np.concatenate(
+                [
+                    np.linspace(x0_, x1_, max(2, int(np.ceil((x1_ - x0_) / CHECK_SPACING)) + 1))
+                    for x0_, x1_ in zip(x[::2], x[1::2], strict=False)
+                ]
+            )
+            P, s = _curve(R[i])
+            u = np.mod(x - x0[p, i], s[-1])
+            k = np.clip(np.searchsorted(s, u, side="right") - 1, 0, len(s) - 2)
+            w = ((u - s[k]) / np.maximum(s[k + 1] - s[k], 1e-300))[:, None]
+            q = (1 - w) * P[k] + w * P[k + 1]
+            pts.append(origin + axial[i] * a + q[:, :1] * f + q[:, 1:] * b)
+    if not pts:
+        return False
+    phi, _ = load_mannequin_sdf(verbose=False, name=body).phi_grad(np.ascontiguousarray(np.concatenate(pts)))
+    return bool(np.any(phi < clear))
+
+
 def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str, Placement]:
     """'wrap' placements of a ring's panels: the section of ``body`` (a name of
     couture.bodies) plus margin, grown to the garment's girth, with the panels
@@ -202,77 +250,96 @@ def fit_ring(ring, panels: dict[str, Panel], body: str = "default") -> dict[str,
         K = sec.radius.shape[1]
         # the table's theta = 0 may differ from the ring's: resample at the ring's angles
         phi = np.arctan2(sec.ref @ b, sec.ref @ f)
-        t_off = float((origin - sec.origin) @ sec.axis)
+    i_full = _full_row(widths) if getattr(ring, "top_rows_as_full", False) else None
 
-    def base_radii(axial: np.ndarray) -> np.ndarray:
-        """Body radii (rows, K) about the ring's axis at its axial coordinates:
-        the section table, at least the ring's ``body_radius`` circle."""
-        circle = None
-        if ring.body_radius is not None:
-            circle = np.repeat(np.asarray(ring.body_radius(axial), float)[:, None], K, axis=1)
-        if sec is None:
-            if circle is None:
-                raise ValueError("a ring needs a body section or a body_radius")
-            return circle
-        R = sec.radii(axial + t_off)
-        reach = getattr(ring, "section_reach", 0.0)
-        if reach > 0:
-            for dt in (-reach, -0.5 * reach, 0.5 * reach, reach):
-                R = np.maximum(R, sec.radii(axial + t_off + dt))
-        # theta_ring = theta_sec - phi
-        th = (2 * np.pi * np.arange(K) / K + phi) % (2 * np.pi) / (2 * np.pi) * K
-        k0 = np.floor(th).astype(int) % K
-        w = th - np.floor(th)
-        R = (1 - w) * R[:, k0] + w * R[:, (k0 + 1) % K]
-        empty = R.max(axis=1) <= 0
-        if empty.any():
-            R[empty] = R[~empty].max(axis=0)
-        return R if circle is None else np.maximum(R, circle)
+    def layout(origin: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(R, axial, x0) of the ring with its axis point for material y = 0 at ``origin``."""
+        t_off = float((origin - sec.origin) @ sec.axis) if sec is not None else 0.0
 
-    axial = ys.copy()
-    for _ in range(2):
-        # a garment tighter than body + margin (a waistband) gives up part of
-        # its margin, down to min_margin, before its seams open
-        base = _upsample(base_radii(axial) + ring.margin)
-        lo = ring.min_margin - ring.margin if getattr(ring, "gap_at", None) is None else 0.0
-        R = np.array([_grow_to(base[i], girth[i], lo) for i in range(n_rows)])
-        # keep material y lengths along the meridian: the axis shortens where the radius changes
-        rbar = R.mean(axis=1)
-        dy = np.diff(ys)
-        dh = np.sqrt(np.maximum(dy**2 - np.diff(rbar) ** 2, (0.5 * dy) ** 2))
-        axial = y_hi - np.concatenate([np.cumsum(dh[::-1])[::-1], [0.0]])
-        if getattr(ring, "anchor_y", None) is not None:  # that row keeps its height instead of the top
-            axial = axial + ring.anchor_y - float(np.interp(ring.anchor_y, ys, axial))
+        def base_radii(axial: np.ndarray) -> np.ndarray:
+            """Body radii (rows, K) about the ring's axis at its axial coordinates:
+            the section table, at least the ring's ``body_radius`` circle."""
+            circle = None
+            if ring.body_radius is not None:
+                circle = np.repeat(np.asarray(ring.body_radius(axial), float)[:, None], K, axis=1)
+            if sec is None:
+                if circle is None:
+                    raise ValueError("a ring needs a body section or a body_radius")
+                return circle
+            R = sec.radii(axial + t_off)
+            reach = getattr(ring, "section_reach", 0.0)
+            if reach > 0:
+                for dt in (-reach, -0.5 * reach, 0.5 * reach, reach):
+                    R = np.maximum(R, sec.radii(axial + t_off + dt))
+            # theta_ring = theta_sec - phi
+            th = (2 * np.pi * np.arange(K) / K + phi) % (2 * np.pi) / (2 * np.pi) * K
+            k0 = np.floor(th).astype(int) % K
+            w = th - np.floor(th)
+            R = (1 - w) * R[:, k0] + w * R[:, (k0 + 1) % K]
+            empty = R.max(axis=1) <= 0
+            if empty.any():
+                R[empty] = R[~empty].max(axis=0)
+            return R if circle is None else np.maximum(R, circle)
 
-    x0 = np.zeros((len(ring.panels), n_rows))
-    n = len(ring.panels)
-    for i in range(n_rows):
-        P, s = _curve(R[i])
-        perim = s[-1]
-        spare = max(perim - girth[i], 0.0)
+        axial = ys.copy()
+        for _ in range(2):
+            # a garment tighter than body + margin (a waistband) gives up part of
+            # its margin, down to min_margin, before its seams open
+            base = _upsample(base_radii(axial) + ring.margin)
+            lo = ring.min_margin - ring.margin if getattr(ring, "gap_at", None) is None else 0.0
+            R = np.array([_grow_to(base[i], girth[i], lo) for i in range(n_rows)])
+            # keep material y lengths along the meridian: the axis shortens where the radius changes
+            rbar = R.mean(axis=1)
+            dy = np.diff(ys)
+            dh = np.sqrt(np.maximum(dy**2 - np.diff(rbar) ** 2, (0.5 * dy) ** 2))
+            axial = y_hi - np.concatenate([np.cumsum(dh[::-1])[::-1], [0.0]])
+            if getattr(ring, "anchor_y", None) is not None:  # that row keeps its height instead of the top
+                axial = axial + ring.anchor_y - float(np.interp(ring.anchor_y, ys, axial))
 
-        def arc_at(theta, s=s):
-            return float(np.interp(np.mod(theta, 2 * np.pi), 2 * np.pi * np.arange(len(s)) / (len(s) - 1), s))
+        x0 = np.zeros((len(ring.panels), n_rows))
+        n = len(ring.panels)
+        for i in range(n_rows):
+            P, s = _curve(R[i])
+            perim = s[-1]
+            spare = max(perim - girth[i], 0.0)
 
-        w_i = widths[:, i]
-        if getattr(ring, "gap_at", None) is None:
-            start = arc_at(ring.angles[0]) - 0.5 * w_i[0] - 0.5 * spare / n
-            starts = start + np.concatenate([[0.0], np.cumsum(w_i[:-1] + spare / n)]) + 0.5 * spare / n
-        else:
-            start = arc_at(ring.gap_at) + 0.5 * spare
-            starts = start + np.concatenate([[0.0], np.cumsum(w_i[:-1])])
-        for p in range(n):
-            x0[p, i] = ext[p][0][i] - starts[p]
+            def arc_at(theta, s=s):
+                return float(np.interp(np.mod(theta, 2 * np.pi), 2 * np.pi * np.arange(len(s)) / (len(s) - 1), s))
 
-    if getattr(ring, "top_rows_as_full", False):
-        # a curved top (an imported skirt's waist, higher at the sides): above the highest row
-        # that every panel crosses at half its width or more, the panels keep that row's layout,
-        # not a row of slivers spread round the body with the shortfall between them
-        full = np.all(widths >= 0.5 * widths.max(axis=1, keepdims=True), axis=0)
-        if full.any():
-            i_full = int(np.nonzero(full)[0].max())
+            w_i = widths[:, i]
+            if getattr(ring, "gap_at", None) is None:
+                start = arc_at(ring.angles[0]) - 0.5 * w_i[0] - 0.5 * spare / n
+                starts = start + np.concatenate([[0.0], np.cumsum(w_i[:-1] + spare / n)]) + 0.5 * spare / n
+            else:
+                start = arc_at(ring.gap_at) + 0.5 * spare
+                starts = start + np.concatenate([[0.0], np.cumsum(w_i[:-1])])
+            for p in range(n):
+                x0[p, i] = ext[p][0][i] - starts[p]
+
+        if i_full is not None:
+            # a curved top (an imported skirt's waist, higher at the sides): above the highest row
+            # that every panel crosses at half its width or more, the panels keep that row's layout,
+            # not a row of slivers spread round the body with the shortfall between them
+            # (on a curve no nearer the body than its margin: a top's straps over the shoulders)
             x0[:, i_full + 1 :] = x0[:, i_full : i_full + 1]
-            R[i_full + 1 :] = R[i_full]
+            R[i_full + 1 :] = np.maximum(R[i_full], base[i_full + 1 :])
+        return R, axial, x0
+
+    R, axial, x0 = layout(origin)
+    clear = getattr(ring, "armpit_clear", None)
+    if clear is not None:
+        # a top: down, a row spacing at a time, until none of its cloth above the body's
+        # waist (sides by the arms, straps at the shoulders) lies within ``clear`` of the body;
+        # below the waist a hem tighter than the hips may start in them (the drape lifts it)
+        from couture.bodies import measured
+
+        waist = float(measured(body)["waist_y"])
+        for _ in range(ARMPIT_STEPS):
+            rows = np.flatnonzero(origin[1] + a[1] * axial >= waist)
+            if not _in_body(outlines, ys, rows, origin, a, f, b, R, axial, x0, body, clear):
+                break
+            origin = origin - a * (ROW_SPACING / a[1])
+            R, axial, x0 = layout(origin)
     out = {}
     for p, name in enumerate(ring.panels):
         out[name] = Placement(

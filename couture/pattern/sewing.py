@@ -40,7 +40,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from couture.pattern import mannequin as M
 from couture.pattern.errors import PatternError
 from couture.pattern.geometry import polyline_length, signed_area
 from couture.pattern.imported import ImportedPiece
@@ -1191,10 +1190,13 @@ def build_design(
     lm = landmark or ("shoulder" if is_top(panels) or shoulders else "waist")
     if lm not in ("waist", "shoulder"):
         raise PatternError("landmark", f"landmark {lm!r} is not 'waist' or 'shoulder'")
+    from couture.pattern.landmarks import neck
+
     m0 = measured("default")
-    height = float(m0["waist_y"]) if lm == "waist" else float(m0["underarm_y"]) + (M.SHOULDER_Y - M.UNDERARM_Y)
-    if lm == "waist":
-        height += 0.02  # the waist edge a little above the waist: the cloth settles onto it
+    nk = neck("default")
+    # a top: its highest points (the shoulders' neck ends) at the neck's base, moved with
+    # the body's neck base (and down where its armholes would not clear the armpits)
+    height = float(m0["waist_y"]) + 0.02 if lm == "waist" else nk.base_y
     pos = {n: i for i, n in enumerate(order)}
     # the first panel's centre angle: the front panel centred at theta = 0, or a front pair's seam there
     by = {p.name: p for p in panels}
@@ -1230,9 +1232,6 @@ def build_design(
         b = next(p for p in panels if p.band)
         band_angle = float(start + math.pi * np.ptp(b.outline[:, 0]) / max(sum(w), 1e-9))
         notes.append(f"{b.name} sewn to the waist in {len(band_seams)} parts, round the body from the opening")
-    from couture.pattern.landmarks import neck
-
-    nk = neck("default")
     neck_base = nk.base_y
     for p in panels:
         if p.neck and float(np.ptp(p.outline[:, 1])) > nk.top_y - nk.base_y:
@@ -1279,6 +1278,7 @@ def build_design(
                 placement=PiecePlacement(
                     ring=rings.get(p.name, "flat"),  # type: ignore[arg-type]
                     position=pos.get(p.name, 0),
+                    landmark="neck" if lm == "shoulder" and rings.get(p.name) == "torso" else "waist",
                     angle=angle0
                     if rings.get(p.name) == "torso"
                     else (band_angle if p.band else collar_angle if p.neck else 0.0),

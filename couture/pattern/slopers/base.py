@@ -67,6 +67,15 @@ class Ring:
     another body the ring moves along its axis to that body's waist
     (``couture.bodies.measured``); 'neck': likewise at the neck's base
     (``couture.pattern.landmarks.neck``); None: placed where drafted on every body"""
+    armpit_clear: float | None = None
+    """[m] a top's ring (``landmark`` 'neck', ``top_rows_as_full``): the ring
+    moves down, a row spacing at a time where it must, until no cloth from a
+    little below the armholes' bottoms up (the highest row every panel
+    crosses at half its width or more) lies within this distance of the
+    body's surface, arms and shoulders included: a top whose shoulders' neck
+    ends sit on the neck base but whose sides or straps would start in the
+    arms or shoulders (a body whose neck stands higher over its armpits than
+    the pattern's) starts clear of them; None: no check"""
     section_reach: float = 0.0
     """[m] each row's body radii are the largest of the section table's within
     this distance along the axis (a margin against a table row that
