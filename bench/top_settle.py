@@ -1,6 +1,6 @@
 """``python -m bench.top_settle PATTERN [--body SET.json] [--exclude NAME ...]``:
 where an imported top starts, where its coarse drape ends, and what holds it
-there (docs/import.md, "Tops that ride up").
+there (docs/import.md, "Where tops start and end").
 
 The pattern imported as ``couture import`` does (``--body``: the measurement
 set's own body), meshed coarse (``--vertices``), solved by Newton from its
