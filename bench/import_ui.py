@@ -188,6 +188,16 @@ def _pattern_to_page(page, view2d, p_display: np.ndarray, z: float = 0.0) -> np.
 
 DRAWN_TOL = 20
 """[0-255 per channel] a pattern-view pixel farther than this from the view's background is drawn on"""
+EDGE_PX = 2.0
+"""[page pixels] sample points at least this far inside a piece's outline"""
+
+
+def _to_outline(P: np.ndarray, q: np.ndarray) -> float:
+    """Distance from point q (2,) to the closed polyline P (k, 2)."""
+    A, B = P, np.roll(P, -1, axis=0)
+    d = B - A
+    t = np.clip(((q - A) * d).sum(axis=1) / np.maximum((d * d).sum(axis=1), 1e-300), 0.0, 1.0)
+    return float(np.linalg.norm(A + t[:, None] * d - q, axis=1).min())
 
 
 def _pieces_drawn(page, ui, names: list[str], last: dict[str, float], grid: int = 9) -> dict[str, float] | None:
@@ -215,13 +225,19 @@ def _pieces_drawn(page, ui, names: list[str], last: dict[str, float], grid: int 
     lo, hi = v2.bounds()
     lo, hi = np.asarray(lo, float)[:2], np.asarray(hi, float)[:2]
     background = rgb(np.array([0.5 * (lo[0] + hi[0]), lo[1] - 0.05 * (hi[1] - lo[1])]))
+    # page pixels per display unit: a point nearer a piece's outline than EDGE_PX is not sampled
+    # (a thin piece, a binding a few pixels high, would read its anti-aliased edge)
+    px = float(
+        np.linalg.norm(_pattern_to_page(page, v2, np.array([1.0, 0.0])) - _pattern_to_page(page, v2, np.zeros(2)))
+    )
     share = {}
     for n in names:
         P = v2.display(n, pat.panel(n).outline)
         a, b = P.min(axis=0), P.max(axis=0)
         g = np.linspace(0.1, 0.9, grid)
         pts = [a + (b - a) * np.array([u, v]) for u in g for v in g]
-        drawn = [bool(np.abs(rgb(q) - background).max() > DRAWN_TOL) for q in pts if _inside(P, q)]
+        pts = [q for q in pts if _inside(P, q) and _to_outline(P, q) * px >= EDGE_PX]
+        drawn = [bool(np.abs(rgb(q) - background).max() > DRAWN_TOL) for q in pts]
         share[n] = float(np.mean(drawn)) if drawn else 0.0
     last.update(share, background=float(background.mean()))
     _log(f"pieces drawn: {last}")
