@@ -331,6 +331,9 @@ def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Pa
             # a piece drawn with its centre to the left lies on the body's left at the front, its right at the back
             role = piece_role(pc)
             drawn_left = center_min == (role != "back")
+            named = _pair_side(pc.name)
+            if named:  # a pair exported as one piece under its first half's name: the piece drawn is that half
+                drawn_left = named == "left"
             copies = [("left", a if drawn_left else b, ""), ("right", b if drawn_left else a, "")]
         else:
             copies = [("", P, "")]
@@ -338,7 +341,7 @@ def panels_of(pieces: list[ImportedPiece], spacing: float = SPACING) -> list[_Pa
             Q = Q - np.array([Q[:, 0].min(), Q[:, 1].max()])
             corners = find_corners(Q)
             R, rc = resample(Q, corners, spacing)
-            name = f"{pc.name}_{side}" if side else pc.name
+            name = f"{_pair_stem(pc.name)}_{side}" if side else pc.name
             notches = pc.notches
             out.append(
                 _Panel(
@@ -1149,6 +1152,25 @@ def fronts_by_neckline(pieces: list[ImportedPiece], notes: list[str]) -> list[Im
     out = list(pieces)
     out[front], out[back] = replace(out[front], role="front"), replace(out[back], role="back")
     return out
+
+
+def _pair_side(name: str) -> str:
+    """'left' or 'right' when a 'Cut 2' piece's name ends '_left' or '_right'
+    (a pair couture exported as one piece under its first half's name, drawn
+    as that half), else ''."""
+    for side in ("left", "right"):
+        if name.endswith("_" + side) and len(name) > len(side) + 1:
+            return side
+    return ""
+
+
+def _pair_stem(name: str) -> str:
+    """The name a 'Cut 2' piece's left and right halves are named after: the
+    piece's own, less a trailing '_left' or '_right' (:func:`_pair_side`: the
+    exported pair imports back as 'back_left' and 'back_right', not as
+    'back_left_left' and 'back_left_right')."""
+    side = _pair_side(name)
+    return name[: -len(side) - 1] if side else name
 
 
 def build_design(
