@@ -614,6 +614,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--seed", type=int, default=0, help="seed of the Cusick discs' random start (default 0; the folds choose by it)"
     )
+    ap.add_argument(
+        "--max-seconds",
+        type=float,
+        default=120.0,
+        help="[s] Newton's wall-clock limit per Cusick disc (default 120; finer discs need more)",
+    )
     ap.add_argument("--quick", action="store_true", help="one fabric, coarse meshes, warp and bias only (a test)")
     ap.add_argument(
         "--out", type=Path, default=RESULTS_DIR / "fabric", metavar="DIR", help="results folder (default: %(default)s)"
@@ -643,6 +649,7 @@ def main(argv: list[str] | None = None) -> int:
         "h_strip_m": h_strip,
         "h_disc_m": h_disc,
         "seed": a.seed,
+        "cusick_max_seconds": a.max_seconds,
     }
     if "cantilever" in a.tests:
         rows = []
@@ -684,7 +691,7 @@ def main(argv: list[str] | None = None) -> int:
     if "cusick" in a.tests:
         rows = []
         for k, n in enumerate(names, 1):
-            r = cusick(fabrics.get(n), h=h_disc, seed=a.seed)
+            r = cusick(fabrics.get(n), h=h_disc, seed=a.seed, max_seconds=a.max_seconds)
             r.update(against_measured(r, fabrics.entry(n)))
             rows.append(r)
             print(
