@@ -56,7 +56,7 @@ MEASURED_DRAPE = ("measured_dc", "measured_dc_diameter")
 """optional, together: a published Cusick drape coefficient of the very fabric an
 entry's numbers were measured on, and the specimen diameter [m] it was measured
 with (ISO 9073-9 allows 24, 30 and 36 cm discs, whose coefficients differ);
-each with a 'measured:' source naming the paper and its table"""
+the coefficient's source 'measured:', naming the paper and its table"""
 
 KINDS = ("woven", "knit")
 
@@ -141,7 +141,7 @@ def _entry(path: Path, name: str, raw: object) -> FabricEntry:
 def _measured_drape(
     path: Path, name: str, raw: dict[str, object], sources: dict[str, object]
 ) -> tuple[float | None, float | None]:
-    """(measured_dc, measured_dc_diameter) of an entry, both or neither, each with a 'measured:' source."""
+    """(measured_dc, measured_dc_diameter) of an entry, both or neither, each with a source, the DC's 'measured:'."""
     given = [f for f in MEASURED_DRAPE if f in raw]
     if not given:
         return None, None
@@ -154,7 +154,9 @@ def _measured_drape(
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise _fail(path, f"fabric.{name}.{field}", f"{v!r} is not a finite number")
         src = sources.get(field)
-        if not isinstance(src, str) or not src.startswith("measured:"):
+        if not isinstance(src, str) or not src.strip():
+            raise _fail(path, f"fabric.{name}.source.{field}", "missing: every number needs its source")
+        if field == "measured_dc" and not src.startswith("measured:"):
             raise _fail(path, f"fabric.{name}.source.{field}", "needs a 'measured: ...' source (paper, table)")
         out.append(float(v))
     dc, diameter = out

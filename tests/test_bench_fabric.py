@@ -132,3 +132,19 @@ def test_a_published_drape_coefficient_is_set_beside_the_benchs(tmp_path):
         e = fabrics.entry(name)
         if e.measured_dc is None:
             assert fb.against_measured({"drape_coefficient": 0.65}, e) == {}
+
+
+def test_the_bench_runs_another_library_and_saves_the_comparison(tmp_path):
+    """``--library``: a trial file's fabric on a coarse Cusick disc; its
+    published DC and the difference land in the JSON row."""
+    from tests.test_fabrics import MEASURED_DRAPE, _write
+
+    lib = _write(tmp_path, MEASURED_DRAPE)
+    out = tmp_path / "out"
+    assert fb.main(["--quick", "--tests", "cusick", "--library", str(lib), "--fabrics", "x", "--out", str(out)]) == 0
+    d = json.loads((out / "fabric.json").read_text())
+    (c,) = d["cusick"]
+    assert c["fabric"] == "x" and d["library"] == str(lib)
+    assert c["measured_dc"] == 0.62 and c["dc_minus_measured"] == pytest.approx(c["drape_coefficient"] - 0.62)
+    with pytest.raises(SystemExit, match="unknown fabric 'denim'.*'x'"):
+        fb.main(["--quick", "--tests", "cusick", "--library", str(lib), "--fabrics", "denim", "--out", str(out)])
