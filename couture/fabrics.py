@@ -9,7 +9,10 @@
 Every entry carries the directional values (warp, weft, shear stiffness
 [N/m]; warp, weft, bias bending [N m]; thickness [m]) and the isotropic
 fallbacks (``stretch_stiffness``, ``bend_stiffness``) a model without the
-directional path reads, each number with its source. The file is checked
+directional path reads, each number with its source; an entry whose fabric
+was also drape-tested in the paper its numbers come from may carry that
+Cusick drape coefficient (``measured_dc``, with ``measured_dc_diameter``),
+which ``couture bench fabric`` sets beside its own. The file is checked
 when read: every value through :func:`couture.pattern.limits.check_fabric`,
 every number with a source; a bad entry raises :class:`FabricLibraryError`
 naming the file, the fabric and the field. Bus-free and cheap (no numba).
@@ -49,6 +52,12 @@ NUMBERS = (
 )
 """the Fabric fields every library entry gives (all of them, each with a source)"""
 
+MEASURED_DRAPE = ("measured_dc", "measured_dc_diameter")
+"""optional, together: a published Cusick drape coefficient of the very fabric an
+entry's numbers were measured on, and the specimen diameter [m] it was measured
+with (ISO 9073-9 allows 24, 30 and 36 cm discs, whose coefficients differ);
+the coefficient's source 'measured:', naming the paper and its table"""
+
 KINDS = ("woven", "knit")
 
 
@@ -70,6 +79,10 @@ class FabricEntry:
     """strain up to which the linear (draping-range) stiffness fit holds"""
     sources: dict[str, str]
     """field -> its source and conversion ('measured: ...' or 'estimate: ...')"""
+    measured_dc: float | None = None
+    """a published Cusick drape coefficient (0..1) of this fabric, if one was found (see MEASURED_DRAPE)"""
+    measured_dc_diameter: float | None = None
+    """[m] the specimen diameter that coefficient was measured with"""
 
     @property
     def bending_length_warp(self) -> float:
@@ -89,7 +102,7 @@ def _fail(path: Path, where: str, what: str) -> FabricLibraryError:
 def _entry(path: Path, name: str, raw: object) -> FabricEntry:
     if not isinstance(raw, dict):
         raise _fail(path, f"fabric.{name}", "not a table")
-    known = set(NUMBERS) | {"label", "kind", "valid_strain", "source"}
+    known = set(NUMBERS) | set(MEASURED_DRAPE) | {"label", "kind", "valid_strain", "source"}
     extra = sorted(set(raw) - known)
     if extra:
         raise _fail(path, f"fabric.{name}.{extra[0]}", f"unknown field (known: {sorted(known)})")
@@ -116,12 +129,42 @@ def _entry(path: Path, name: str, raw: object) -> FabricEntry:
     if not 0.0 < values["valid_strain"] <= 1.0:
         raise _fail(path, f"fabric.{name}.valid_strain", f"{values['valid_strain']} is outside (0, 1]")
     strain = values.pop("valid_strain")
+    drape = _measured_drape(path, name, raw, sources)
     fabric = Fabric(name=name, **values)
     try:
         check_fabric(fabric, prefix=f"fabric.{name}")
     except PatternError as e:
         raise FabricLibraryError(f"{path}: {e}") from None
-    return FabricEntry(name, label, kind, fabric, strain, {k: str(v) for k, v in sources.items()})
+    return FabricEntry(name, label, kind, fabric, strain, {k: str(v) for k, v in sources.items()}, *drape)
+
+
+def _measured_drape(
+    path: Path, name: str, raw: dict[str, object], sources: dict[str, object]
+) -> tuple[float | None, float | None]:
+    """(measured_dc, measured_dc_diameter) of an entry, both or neither, each with a source, the DC's 'measured:'."""
+    given = [f for f in MEASURED_DRAPE if f in raw]
+    if not given:
+        return None, None
+    if len(given) == 1:
+        missing = next(f for f in MEASURED_DRAPE if f not in raw)
+        raise _fail(path, f"fabric.{name}.{missing}", f"missing: {given[0]} needs it (a coefficient and its specimen)")
+    out = []
+    for field in MEASURED_DRAPE:
+        v = raw[field]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise _fail(path, f"fabric.{name}.{field}", f"{v!r} is not a finite number")
+        src = sources.get(field)
+        if not isinstance(src, str) or not src.strip():
+            raise _fail(path, f"fabric.{name}.source.{field}", "missing: every number needs its source")
+        if field == "measured_dc" and not src.startswith("measured:"):
+            raise _fail(path, f"fabric.{name}.source.{field}", "needs a 'measured: ...' source (paper, table)")
+        out.append(float(v))
+    dc, diameter = out
+    if not 0.0 < dc < 1.0:
+        raise _fail(path, f"fabric.{name}.measured_dc", f"{dc} is outside (0, 1) (a fraction, not a percentage)")
+    if not 0.24 <= diameter <= 0.36:
+        raise _fail(path, f"fabric.{name}.measured_dc_diameter", f"{diameter} m is not a Cusick specimen (0.24-0.36 m)")
+    return dc, diameter
 
 
 def load(path: str | Path = LIBRARY) -> dict[str, FabricEntry]:

@@ -114,3 +114,37 @@ def test_quick_bench_run_on_one_fabric(tmp_path):
     (c,) = d["cusick"]
     assert c["fabric"] == "cotton_shirting" and 0.0 < c["drape_coefficient"] < 1.0 and c["nodes"] >= 2
     assert (tmp_path / "cusick.png").stat().st_size > 10_000
+
+
+def test_a_published_drape_coefficient_is_set_beside_the_benchs(tmp_path):
+    """Compared on the bench's own 30 cm specimen only (ISO 9073-9's 24 and
+    36 cm discs give other coefficients); nothing for a fabric without one."""
+    from couture import fabrics
+    from tests.test_fabrics import MEASURED_DRAPE, _write
+
+    entry = fabrics.load(_write(tmp_path, MEASURED_DRAPE))["x"]
+    out = fb.against_measured({"drape_coefficient": 0.65}, entry)
+    assert out["measured_dc"] == 0.62 and out["dc_minus_measured"] == pytest.approx(0.03)
+    assert out["measured_dc_source"].startswith("measured:")
+    other = fabrics.load(_write(tmp_path, MEASURED_DRAPE.replace("diameter = 0.30", "diameter = 0.24")))["x"]
+    assert "dc_minus_measured" not in fb.against_measured({"drape_coefficient": 0.65}, other)
+    for name in fabrics.names():
+        e = fabrics.entry(name)
+        if e.measured_dc is None:
+            assert fb.against_measured({"drape_coefficient": 0.65}, e) == {}
+
+
+def test_the_bench_runs_another_library_and_saves_the_comparison(tmp_path):
+    """``--library``: a trial file's fabric on a coarse Cusick disc; its
+    published DC and the difference land in the JSON row."""
+    from tests.test_fabrics import MEASURED_DRAPE, _write
+
+    lib = _write(tmp_path, MEASURED_DRAPE)
+    out = tmp_path / "out"
+    assert fb.main(["--quick", "--tests", "cusick", "--library", str(lib), "--fabrics", "x", "--out", str(out)]) == 0
+    d = json.loads((out / "fabric.json").read_text())
+    (c,) = d["cusick"]
+    assert c["fabric"] == "x" and d["library"] == str(lib)
+    assert c["measured_dc"] == 0.62 and c["dc_minus_measured"] == pytest.approx(c["drape_coefficient"] - 0.62)
+    with pytest.raises(SystemExit, match="unknown fabric 'denim'.*'x'"):
+        fb.main(["--quick", "--tests", "cusick", "--library", str(lib), "--fabrics", "denim", "--out", str(out)])

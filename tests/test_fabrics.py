@@ -161,3 +161,38 @@ def test_a_file_that_is_not_toml_is_named(tmp_path):
     p = _write(tmp_path, "[fabric.x\n")
     with pytest.raises(FabricLibraryError, match="cannot be read as TOML"):
         load(p)
+
+
+MEASURED_DRAPE = GOOD.replace(
+    "valid_strain = 0.03\n",
+    "valid_strain = 0.03\nmeasured_dc = 0.62\nmeasured_dc_diameter = 0.30\n",
+    1,
+) + ('\nmeasured_dc = "measured: test paper, Table 2"\nmeasured_dc_diameter = "measured: test paper, 30 cm on 18 cm"')
+
+
+def test_a_published_drape_coefficient_loads_with_its_specimen(tmp_path):
+    e = load(_write(tmp_path, MEASURED_DRAPE))["x"]
+    assert (e.measured_dc, e.measured_dc_diameter) == (0.62, 0.30)
+    assert e.sources["measured_dc"].startswith("measured:")
+    # the shipped entries carry none unless a paper measured the fabric their numbers describe
+    assert load(_write(tmp_path, GOOD))["x"].measured_dc is None
+    for name in fabrics.names():
+        e = fabrics.entry(name)
+        assert (e.measured_dc is None) == (e.measured_dc_diameter is None)
+        if e.measured_dc is not None:
+            assert e.sources["measured_dc"].startswith("measured:"), name
+
+
+@pytest.mark.parametrize(
+    "old,new,where",
+    [
+        ("measured_dc = 0.62", "measured_dc = 62.0", r"fabric\.x\.measured_dc: 62\.0 is outside"),
+        ("measured_dc_diameter = 0.30\n", "", r"fabric\.x\.measured_dc_diameter: missing"),
+        ("measured_dc_diameter = 0.30", "measured_dc_diameter = 0.18", r"not a Cusick specimen"),
+        ('measured_dc = "measured: test paper, Table 2"', 'measured_dc = "estimate: about"', r"source\.measured_dc"),
+    ],
+)
+def test_a_bad_published_drape_coefficient_is_named(tmp_path, old, new, where):
+    assert old in MEASURED_DRAPE
+    with pytest.raises(FabricLibraryError, match=where):
+        load(_write(tmp_path, MEASURED_DRAPE.replace(old, new, 1)))
