@@ -262,7 +262,8 @@ def main(argv: list[str] | None = None) -> int:
         rec = solve_and_record(design, args.solver, args.max_seconds)
         model = rec.pop("service").levels["fine"].model
         if args.states is not None:
-            np.savez(args.states, **{k: v for k, v in rec.items() if isinstance(v, np.ndarray)})
+            arrays: dict[str, Any] = {k: v for k, v in rec.items() if isinstance(v, np.ndarray)}
+            np.savez(args.states, **arrays)
     result = analyse(model, rec, args.vertices)
     result.update(
         design=args.design,
