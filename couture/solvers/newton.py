@@ -574,7 +574,7 @@ class NewtonSolver:
             # at a relative residual of 1e6 dragged the hem across the ankle in 20-30 mm
             # moves; the fine level then pressed two vertices 1.4 mm into the ankle).
             # Damped dynamics from the placement take another path; their drape is
-            # taken when it has fewer such edges
+            # taken when it has fewer such edges (converged or not)
             now = time.perf_counter() - t_start
             stats["edges_through_body"] = through
             if now < max_seconds:
@@ -594,13 +594,23 @@ class NewtonSolver:
                 it += dyn.iterations
                 through_dyn = edges_through_body(model, dyn.x)
                 stats["edges_through_body_dynamics"] = through_dyn
-                if dyn.converged and through_dyn < through:
+                if through_dyn < through:
                     log.info(
                         "newton: %d edges through the body; damped dynamics from the placement: %d",
                         through,
                         through_dyn,
                     )
                     x, r = dyn.x, dyn.residual
+                    if not dyn.converged:
+                        # out of time: their state, unconverged, so that a caller that
+                        # gives more time (SolveService.extend_by) goes on from there
+                        converged = False
+                        diag = (
+                            f"the body passed through the cloth between vertices ({through} edges); damped "
+                            f"dynamics from the placement left {through_dyn}, unconverged: {dyn.diagnosis}"
+                        )
+                        best = BestState(model)
+                        best.offer(x, r, it)
                 else:
                     put = getattr(model, "set_friction_state", None)
                     if put is not None:
