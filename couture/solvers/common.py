@@ -182,6 +182,44 @@ def deepest_inside(model, x: np.ndarray) -> float:
     return float(max(0.0, -np.min(phi)))
 
 
+THROUGH_SAMPLES = 3
+"""interior points per edge at which ``edges_through_body`` queries the body"""
+
+
+def edges_through_body(model, x: np.ndarray) -> int:
+    """How many cloth edges have both ends outside the body's surface (phi >= 0)
+    while a point between them (``THROUGH_SAMPLES`` evenly spaced) lies deeper
+    below it than the contact layer is thick: a part of the body passes through
+    the cloth between two vertices. Contact acts on vertices, so neither it nor
+    ``deepest_inside`` sees this; it happens where a thin part (an ankle, a
+    wrist) is no wider than a few coarse edges, and a drape then balances with
+    the part through a stretched triangle (titan trousers on cisMaleAdult46:
+    the coarse Newton drape from the placement, four edges across the ankle
+    up to 22 mm deep; bench/inside.py). 0 for a model without a body."""
+    body = getattr(model, "body", None)
+    if body is None or not len(model.tris):
+        return 0
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    t = model.tris
+    e = np.unique(np.sort(np.vstack([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1), axis=0)
+    phi, _ = body.phi_grad(x)
+    a, b = x[e[:, 0]], x[e[:, 1]]
+    depth = float(getattr(model, "contact_offset", 0.0) or 0.0)
+    # phi is a distance (1-Lipschitz): along an edge of length L it stays above
+    # (phi_a + phi_b - L) / 2, so only edges with phi_a + phi_b < L - 2 depth can
+    # reach that deep (half the depth kept as a margin for the interpolated field)
+    length = np.sqrt(((b - a) ** 2).sum(axis=1))
+    pa, pb = phi[e[:, 0]], phi[e[:, 1]]
+    cand = np.nonzero((pa >= 0.0) & (pb >= 0.0) & (pa + pb < length - depth))[0]
+    if not len(cand):
+        return 0
+    deep = np.zeros(len(cand), bool)
+    for s in np.linspace(0.0, 1.0, THROUGH_SAMPLES + 2)[1:-1]:
+        p, _ = body.phi_grad(np.ascontiguousarray((1.0 - s) * a[cand] + s * b[cand]))
+        deep |= p < -depth
+    return int(deep.sum())
+
+
 class SurfaceGuard:
     """Keeps a line search from jumping cloth through the body: a trial state is
     refused when a free vertex that was outside the body's surface (phi >= 0)
