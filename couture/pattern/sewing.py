@@ -1003,6 +1003,23 @@ def is_top(panels: list[_Panel]) -> bool:
 # ------------------------------------------------------------------ the design
 
 
+def _held_by_nothing(panels: list[_Panel], seams: list[Suggestion], placed: set[str]) -> list[str]:
+    """The pieces that no chain of seams joins to a piece placed on the body (a
+    ring, or inside one): laid flat in front of the body, nothing holds them
+    (Valentina's TShirt_test in AAMA: its front neck facing, no seam suggested)."""
+    nbr: dict[str, set[str]] = {p.name: set() for p in panels}
+    for s in seams:
+        nbr[s.a_panel].add(s.b_panel)
+        nbr[s.b_panel].add(s.a_panel)
+    held = {n for n in placed if n in nbr}
+    todo = list(held)
+    while todo:
+        for m in nbr[todo.pop()] - held:
+            held.add(m)
+            todo.append(m)
+    return [p.name for p in panels if p.name not in held]
+
+
 @dataclass
 class ImportReport:
     """What ``couture import`` found and decided."""
@@ -1286,6 +1303,15 @@ def build_design(
         )
         seams = [s for s in seams if s.a_panel not in unplaced and s.b_panel not in unplaced]
         panels = [p for p in panels if p.name not in unplaced]
+    loose = _held_by_nothing(panels, seams, set(rings)) if rings else []
+    if loose:
+        notes.append(
+            f"{', '.join(loose)}: sewn to no piece on the body (no seam at confidence >= {min_confidence:g}) "
+            "and on no ring: in a drape it would fall (nothing holds it) and the drape could not converge: "
+            "left out of the design (sew it by hand: a seam in the design file, or --min-confidence)"
+        )
+        seams = [s for s in seams if s.a_panel not in loose and s.b_panel not in loose]
+        panels = [p for p in panels if p.name not in loose]
     out_pieces = []
     for p in panels:
         out_pieces.append(
