@@ -72,3 +72,22 @@ def test_newton_runs_no_dynamics_when_the_cloth_rests_on_the_body():
     assert edges_through_body(model, res.x) == 0
     assert "edges_through_body" not in res.stats and "dynamics_from_placement_steps" not in res.stats
     assert np.linalg.norm(res.x, axis=1).min() > 0.03
+
+
+def test_a_solve_request_from_the_placement_is_solved_as_one():
+    """``solve_once`` (a solver node's solve request, pattern adjustment's
+    solves): a warm start equal to the mesh's placement, or none, takes the
+    placement's path (the surface guard and the check for the body between
+    vertices, seen here in the stats); any other warm start does not."""
+    from couture.solvers.service import solve_once
+
+    newton = get_solver("newton")
+    for warm in (None, "x0"):
+        model = hammock(5, 0.03, 0.01)
+        x_warm = None if warm is None else model.mesh.x0.copy()
+        res = solve_once(newton, model, x_warm, tol=1e-6, max_seconds=60)
+        assert res.stats.get("edges_through_body", 0) >= 1, (warm, res.stats)
+    model = hammock(5, 0.03, 0.01)
+    moved = model.mesh.x0 + np.array([0.0, 1e-4, 0.0])
+    res = solve_once(newton, model, moved, tol=1e-6, max_seconds=60)
+    assert "edges_through_body" not in res.stats and "dynamics_from_placement_steps" not in res.stats

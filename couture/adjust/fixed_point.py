@@ -292,7 +292,10 @@ def local_simulator(mesh: GarmentMesh, design, method: str = "newton", tol: floa
 
     def simulate(X: np.ndarray, x_warm: np.ndarray) -> Simulated:
         model.set_rest_positions(np.asarray(X, np.float64))
-        r = solver.solve(model, np.array(x_warm, np.float64), tol=tol, max_seconds=max_seconds)
+        # as on a solver node, which receives each solve's mesh with its warm start as the
+        # placement (with_rest): every solve starts from its own placement
+        # (couture.solvers.service.solve_once)
+        r = solver.solve(model, np.array(x_warm, np.float64), tol=tol, max_seconds=max_seconds, from_placement=True)
         return Simulated(r.x, r.residual, r.converged, method, r.wall_time, r.diagnosis)
 
     return simulate

@@ -51,7 +51,7 @@ from couture.designs import Matched
 from couture.pattern.errors import PatternError
 from couture.pattern.limits import check_simulation_values
 from couture.solvers import SOLVERS, get_solver, solver_class
-from couture.solvers.service import IncomingMesh, LevelRun, SolveService, scene_from_design
+from couture.solvers.service import IncomingMesh, LevelRun, SolveService, scene_from_design, solve_once
 from couture.tryon import TryOnError
 from schemas import (
     Array,
@@ -467,16 +467,16 @@ class SolverAdapter:
                 raise RuntimeError(f"no {req.level} mesh of mesh_generation {req.mesh_generation} here")
             mesh = lm.mesh
         model = ClothModel(mesh, design.fabric, scene_from_design(design))
-        x0 = req.x_warm.numpy() if req.x_warm is not None else mesh.x0
         # friction from the first iteration from a placement, the solver's own schedule from a warm start,
-        # as this node solves its levels (couture.solvers.service.FRICTION_AT_ONCE)
-        r = get_solver(config.solver, **solver_options(config)).solve(
+        # as this node solves its levels (couture.solvers.service.FRICTION_AT_ONCE); a warm start equal
+        # to the placement is solved from the placement (solve_once)
+        r = solve_once(
+            get_solver(config.solver, **solver_options(config)),
             model,
-            np.array(x0),
+            req.x_warm.numpy() if req.x_warm is not None else None,
             tol=req.tol,
             max_iters=req.max_iters,
             max_seconds=req.max_seconds,
-            friction_after=math.inf if req.x_warm is None else None,
         )
         return SolveResultMsg(
             method=config.solver,
