@@ -146,7 +146,8 @@ def structured_grid(size: float, n: int, equilateral: bool):
     if equilateral:
         h = size / (n - 1)
         rows = int(round(size / (h * math.sqrt(3) / 2))) + 1
-        pts, ids = [], np.full((rows, n), -1)
+        pts: list[tuple[float, float]] = []
+        ids = np.full((rows, n), -1)
         for r in range(rows):
             for c in range(n):
                 ids[r, c] = len(pts)
@@ -250,11 +251,12 @@ def main(argv: list[str] | None = None) -> int:
     kinds.append(("skirt_gore", "coarse", lambda: skirt_gore(1600)[0]))
     kinds.append(("right_grid", "h2.5mm", lambda: structured_grid(L, int(round(L / 0.0025)) + 1, False)))
     kinds.append(("equilateral", "h2.5mm", lambda: structured_grid(L, int(round(L / 0.0025)) + 1, True)))
-    radii, angles = RADII, ANGLES_DEG
+    radii: tuple[float, ...] = RADII
+    angles: tuple[float, ...] = ANGLES_DEG
     if a.kinds is not None:
         kinds = [k for k in kinds if k[0] in a.kinds]
     if a.quick:
-        kinds = [kinds[0], kinds[5]]
+        kinds = [k for k in kinds if (k[0], k[1]) in {("grid_sheet", "h5mm"), ("remesher_panel", "h8mm")}]
         radii, angles = (0.1,), (0.0, 45.0)
     t_all = time.perf_counter()
     rows = []
