@@ -50,8 +50,8 @@ CALIBRATION_MESHES = {
 }
 """the meshes ``BEND_RELAXED_RESPONSE`` averages (per kind, then over kinds):
 the tests' and benches' sheets and strips, the remesher's panels at garment
-sizes and a garment's fine level (its coarse level only starts the fine
-drape)"""
+sizes and a garment's fine level (its coarse gore at 22 mm leaves only a
+few edges free between the held bands: not a measurement of the mesh)"""
 
 
 def cylinder_map(X: np.ndarray, R: float, angle: float, center: np.ndarray) -> np.ndarray:

@@ -62,10 +62,12 @@ radius, so every equilibrium bent about 6 % softer than the fabric's table
 (the ASTM cantilever strips 3-5 % short in overhang, docs/fabrics.md).
 Hence c = ``BEND_IMPOSED_FIT`` / ``BEND_RELAXED_RESPONSE``: the relaxed
 equilibrium's energy is the continuum's (tests/test_cloth_physics.py), an
-imposed bend costs 1/0.938 = 1.066 times it. The coarse level's meshes
-(the skirt's gore at 22 mm) relax less (0.996 in the window at R = 60 cm):
-there c is about 6 % stiff. The relaxation keeps ν_b at -1/3 (-0.35 relaxed
-against -0.34 imposed on triangle sheets, saddle against cylinder).
+imposed bend costs 1/0.938 = 1.066 times it. Coarse meshes relax alike (a
+remesher panel at 21.6 mm 0.952); the skirt's coarse gore (22 mm) reads
+0.997, but it leaves only a few edges free between its held bands, a limit
+of the measurement (its 14 mm gore: 0.941). The relaxation keeps ν_b at
+-1/3 (-0.35 relaxed against -0.34 imposed on triangle sheets, saddle
+against cylinder).
 The ν_b = -1/3 coupling matters only where curvature is
 not developable: in a linear small-deflection solve a narrow strip bends
 with EI = k_b W (1 - ν_b²) = (8/9) k_b W; a strip clamped across a width
