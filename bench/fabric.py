@@ -620,6 +620,12 @@ def main(argv: list[str] | None = None) -> int:
         default=120.0,
         help="[s] Newton's wall-clock limit per Cusick disc (default 120; finer discs need more)",
     )
+    ap.add_argument(
+        "--isotropic",
+        action="store_true",
+        help="cantilever: also each fabric taken isotropic (its bend_stiffness; a warp strip), as docs/fabrics.md's "
+        "last column",
+    )
     ap.add_argument("--quick", action="store_true", help="one fabric, coarse meshes, warp and bias only (a test)")
     ap.add_argument(
         "--library",
@@ -673,26 +679,30 @@ def main(argv: list[str] | None = None) -> int:
     }
     if "cantilever" in a.tests:
         rows = []
-        for n in strip_names:
-            for d in directions[:1] if a.quick else directions:
-                r = cantilever(get(n), d, h=h_strip)
-                if not a.quick:
-                    # the same test on a mesh twice as coarse: how the error falls with h
-                    r["coarse_h_m"] = 2 * h_strip
-                    r["coarse_error_vs_elastica"] = cantilever(get(n), d, h=2 * h_strip)["error_vs_elastica"]
-                rows.append(r)
-                print(
-                    f"cantilever {n:16s} {d:5s} overhang {100 * r['overhang_m']:6.2f} cm, elastica "
-                    f"{100 * r['elastica_overhang_m']:6.2f} cm ({100 * r['error_vs_elastica']:+.2f} %), Peirce 2c "
-                    f"{100 * r['peirce_overhang_m']:6.2f} cm; "
-                    + (
-                        f"at h = {1000 * r['coarse_h_m']:.1f} mm {100 * r['coarse_error_vs_elastica']:+.2f} %; "
-                        if "coarse_h_m" in r
-                        else ""
-                    )
-                    + f"{len(r['tries'])} drapes, {r['seconds']:.1f} s",
-                    flush=True,
+        runs = [(n, d, False) for n in strip_names for d in (directions[:1] if a.quick else directions)]
+        if a.isotropic:
+            runs += [(n, "warp", True) for n in strip_names]
+        for n, d, iso in runs:
+            fab = _isotropic(get(n)) if iso else get(n)
+            r = cantilever(fab, d, h=h_strip)
+            r["model"] = "isotropic" if iso else "fabric"
+            if not a.quick:
+                # the same test on a mesh twice as coarse: how the error falls with h
+                r["coarse_h_m"] = 2 * h_strip
+                r["coarse_error_vs_elastica"] = cantilever(fab, d, h=2 * h_strip)["error_vs_elastica"]
+            rows.append(r)
+            print(
+                f"cantilever {n + (' (isotropic)' if iso else ''):28s} {d:5s} overhang {100 * r['overhang_m']:6.2f} cm, elastica "
+                f"{100 * r['elastica_overhang_m']:6.2f} cm ({100 * r['error_vs_elastica']:+.2f} %), Peirce 2c "
+                f"{100 * r['peirce_overhang_m']:6.2f} cm; "
+                + (
+                    f"at h = {1000 * r['coarse_h_m']:.1f} mm {100 * r['coarse_error_vs_elastica']:+.2f} %; "
+                    if "coarse_h_m" in r
+                    else ""
                 )
+                + f"{len(r['tries'])} drapes, {r['seconds']:.1f} s",
+                flush=True,
+            )
         results["cantilever"] = rows
         results["cantilever_worst_error"] = max(abs(r["error_vs_elastica"]) for r in rows)
     if "tensile" in a.tests:

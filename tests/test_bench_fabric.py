@@ -109,8 +109,8 @@ def test_quick_bench_run_on_one_fabric(tmp_path):
             abs(r["tries"][-1]["angle_deg"] - 41.5) < 0.2
             or abs(r["overhang_m"] / r["tries"][-1]["overhang"] - 1) < 0.01
         )
-        # docs/fabrics.md: the model's strip is 3-5 % softer (-3.5 % here at 4 mm; -7 % before the clamp fix)
-        assert abs(r["error_vs_elastica"]) < 0.06, r
+        # docs/fabrics.md: -1.5 % here at 4 mm (-3.5 % with the imposed-bend BEND_CONSTANT 0.29, -7 % before the clamp fix)
+        assert abs(r["error_vs_elastica"]) < 0.03, r
     (c,) = d["cusick"]
     assert c["fabric"] == "cotton_shirting" and 0.0 < c["drape_coefficient"] < 1.0 and c["nodes"] >= 2
     assert (tmp_path / "cusick.png").stat().st_size > 10_000
