@@ -323,8 +323,13 @@ def test_a_physics_change_fails_naming_the_worst_vertex(tmp_path):
     # which follow round-off: a fresh clone's run had 5.2 mm against a 3.6 mm bound)
     assert all(r.deviation_m > max(r.bound_m, 1e-3) for r in fine.drapes), report.text()
     # a deviation beyond the bound is checked for separate equilibria of the same physics:
-    # a changed physics balances neither side's model
-    assert all(r.cross_residual is not None and min(r.cross_residual) > 100 * 1e-6 for r in fine.drapes), report.text()
+    # a changed physics balances neither side's model. Only polished drapes are put into the
+    # other's model, and whether Newton's polish converges within its 200 iterations follows
+    # round-off (a fresh clone's run once left generation 1 unpolished, bound 0.31 mm from the
+    # recorded residuals, still failed by 5.2 mm): every polished pair is checked, one at least
+    crossed = [r for r in fine.drapes if r.cross_residual is not None]
+    assert crossed, report.text()
+    assert all(min(r.cross_residual) > 100 * 1e-6 for r in crossed), report.text()
 
 
 @pytest.mark.slow
