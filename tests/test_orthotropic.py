@@ -26,6 +26,7 @@ from couture.cloth.material import (
     hinge_law,
     hinge_stiffness_at,
     lame_parameters,
+    plate_rigidities,
     strip_rigidity,
 )
 from couture.cloth.model import BEND_CONSTANT, CLAMP_HINGE_FACTOR, bending_weights, clamped_hinges
@@ -238,7 +239,7 @@ def test_a_clamps_hinges_keep_every_derivative(fabric):
     assert clamp.sum() >= 5 and model.bend_directional
     np.testing.assert_array_equal(clamp, clamped_hinges(model.bend_stencils, model.free))
     k = model.hinge_stiffness()
-    kw, kf, kb = (3e-5, 1.5e-5, 1e-5) if fabric == "denim" else (1e-4,) * 3
+    kw, kf, kb = plate_rigidities(3e-5, 1.5e-5, 1e-5) if fabric == "denim" else (1e-4,) * 3
     t = model.X[model.bend_stencils[clamp, 1]] - model.X[model.bend_stencils[clamp, 0]]
     t /= np.linalg.norm(t, axis=1)[:, None]
     theta = np.arcsin(np.clip(np.abs(np.sum(t * model.bend_warp[clamp], axis=1)), 0.0, 1.0))
@@ -333,6 +334,46 @@ def test_uniaxial_pull_along_warp_weft_and_bias_gives_the_orthotropic_stress(gra
     assert np.abs(f[~top & ~bottom]).max() <= 1e-9 * sigma * W
 
 
+def _plate_tensor(kw: float, kf: float, kp: float) -> np.ndarray:
+    """(2, 2, 2, 2) the orthotropic plate with cylindrical rigidities kw, kf
+    along warp (axis 0) and weft (axis 1), kp at 45° to them, and the
+    coupling invariant U4 = ν_b U1 (ν_b = -1/3, the hinge energy's)."""
+    nu = -1.0 / 3.0
+    # D(45°) = (D11 + D22 + 2 D12 + 4 D66) / 4 = kp; 8 U4 = 8 nu U1:
+    # (D11 + D22 + 6 D12 - 4 D66) = nu (3 D11 + 3 D22 + 2 D12 + 4 D66)
+    A = np.array([[2.0, 4.0], [6.0 - 2.0 * nu, -4.0 - 4.0 * nu]])
+    b = np.array([4.0 * kp - kw - kf, (3.0 * nu - 1.0) * (kw + kf)])
+    d12, d66 = np.linalg.solve(A, b)
+    D = np.zeros((2, 2, 2, 2))
+    D[0, 0, 0, 0], D[1, 1, 1, 1] = kw, kf
+    D[0, 0, 1, 1] = D[1, 1, 0, 0] = d12
+    for i, j in ((0, 1), (1, 0)):
+        for k, m in ((0, 1), (1, 0)):
+            D[i, j, k, m] = d66
+    return D
+
+
+@pytest.mark.parametrize("rigidities", [(3.92e-7, 2.86e-7, 3.39e-7), (1.06e-4, 6.13e-5, 8.37e-5), (3.0, 1.5, 1.0)])
+def test_a_free_bias_strip_of_the_plate_bends_with_the_tables_bias_rigidity(rigidities):
+    """The plate the hinge law is built for (``plate_rigidities``), written
+    as a 4th-order tensor and rotated 45° (a second route to D11, D16, D66
+    than the invariants the module uses): its cylindrical rigidity there is
+    D(45°), and a strip free to twist, D11 - D16² / D66, is the table's
+    bias rigidity; warp and weft unchanged; an isotropic fabric's k_b is its own."""
+    kw, kf, kb = rigidities
+    pw, pf, pb = plate_rigidities(kw, kf, kb)
+    assert (pw, pf) == (kw, kf) and pb > kb
+    D = _plate_tensor(kw, kf, pb)
+    c = s = math.sqrt(0.5)
+    R = np.array([[c, s], [-s, c]])  # rows: the strip's axis (45° from the warp) and its normal
+    Dr = np.einsum("ia,jb,kc,ld,abcd->ijkl", R, R, R, R, D)
+    d11, d16, d66 = Dr[0, 0, 0, 0], Dr[0, 0, 0, 1], Dr[0, 1, 0, 1]
+    assert d11 == pytest.approx(pb, rel=1e-12)
+    assert abs(d16) == pytest.approx(abs(kw - kf) / 4, rel=1e-12)
+    assert d11 - d16**2 / d66 == pytest.approx(kb, rel=1e-10)
+    assert plate_rigidities(2e-5, 2e-5, 1.5e-5) == (2e-5, 2e-5, 1.5e-5)
+
+
 def test_the_hinge_law_gives_strips_their_rigidity_where_it_can_and_stays_positive():
     """D(β) passes through warp, weft and bias. A mild anisotropy gets the
     calibrated law (mean b0, cos 2θ part b2 / f2, cos 4θ part b4 / f4 for D's
@@ -360,7 +401,7 @@ def test_the_hinge_law_gives_strips_their_rigidity_where_it_can_and_stays_positi
     assert blend[0] < eff[0] < kw and blend[1] < eff[1] < kf and kb < eff[2] < blend[2]
     # isotropic: one stiffness on every hinge, exactly
     assert np.array_equal(hinge_law(2e-5, 2e-5, 2e-5), [2e-5, 0, 0, 1, 0, 0])
-    law = hinge_law(kw, kf, kb)
+    law = hinge_law(*plate_rigidities(kw, kf, kb))  # a model builds its hinges for the plate
     mesh = grid_sheet(0.2, 0.2, 6, 6)
     for grain in (0.0, 0.4):
         mesh.panel_grain = np.array([grain])
@@ -412,7 +453,7 @@ def test_a_strip_along_warp_weft_or_bias_bends_with_its_rigidity(grain, rigiditi
     model = ClothModel(mesh, fab, Scene(gravity=False))
     measured = {}
     for beta, name in ((0.0, "warp"), (math.pi / 2, "weft"), (math.pi / 4, "bias")):
-        want = float(imposed_strip_rigidity(kw, kf, kb, beta))
+        want = float(imposed_strip_rigidity(*plate_rigidities(kw, kf, kb), beta))
         a = grain + beta  # the bend's direction: beta from the warp, the warp at grain from +y
         d = np.array([-math.sin(a), math.cos(a)])
         measured[name] = _cylinder_bending_energy(model, d) / _cylinder_bending_energy(iso, d)
@@ -441,7 +482,7 @@ def test_each_panel_gets_its_own_membrane_density_and_bending():
     k = model.hinge_stiffness()
     in_b = np.isin(model.bend_stencils[:, 0], np.unique(mesh.tris[mesh.tri_panel == 1]))
     assert in_b.any() and np.allclose(k[in_b], ISO.bend_stiffness, rtol=1e-14, atol=0)
-    law = hinge_law(DENIM.bend_warp, DENIM.bend_weft, DENIM.bend_bias)
+    law = hinge_law(*plate_rigidities(DENIM.bend_warp, DENIM.bend_weft, DENIM.bend_bias))
     curve = hinge_stiffness_at(law, np.linspace(0, np.pi, 1001))
     assert curve.min() * 0.999 <= k[~in_b].min() and k[~in_b].max() <= curve.max() * 1.001
 
