@@ -247,6 +247,49 @@ def test_compare_reports_missing_and_integer_mismatch(tmp_path):
     assert compare(str(tmp_path / "g.mcap"), str(tmp_path / "g.mcap")).ok
 
 
+def test_a_prolongation_is_compared_as_points_on_the_coarse_mesh(tmp_path):
+    """A fine vertex on an edge two coarse triangles share may name either (which
+    one is round-off: two CPUs gave triangles 10 and 30 for one golden vertex):
+    the same points pass; a point moved by more than the tolerance fails."""
+    coarse, fine = grid_sheet(0.3, 0.3, 3, 3), grid_sheet(0.3, 0.3, 6, 6)
+    coarse.level = "coarse"
+    T, X = coarse.tris, coarse.X
+    a, b, c = X[T[:, 0]], X[T[:, 1]], X[T[:, 2]]
+    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    first, last, bary_first, bary_last = [], [], [], []
+    for p in fine.X:
+        l1 = ((b[:, 0] - p[0]) * (c[:, 1] - p[1]) - (b[:, 1] - p[1]) * (c[:, 0] - p[0])) / det
+        l2 = ((c[:, 0] - p[0]) * (a[:, 1] - p[1]) - (c[:, 1] - p[1]) * (a[:, 0] - p[0])) / det
+        w = np.stack([l1, l2, 1.0 - l1 - l2], axis=1)
+        inside = np.flatnonzero((w >= -1e-9).all(axis=1))
+        first.append(inside[0]), last.append(inside[-1])
+        bary_first.append(w[inside[0]]), bary_last.append(w[inside[-1]])
+    first, last = np.array(first, np.int32), np.array(last, np.int32)
+    ties = int((first != last).sum())
+    assert ties > 0  # the boundary vertices of the fine sheet lie on coarse edges
+
+    def write(path: Path, parent: np.ndarray, bary: np.ndarray) -> None:
+        w = SessionWriter(str(path))
+        w.write("couture/x/mesh/coarse", encode(mesh_to_msg(coarse, generation=1)), 1)
+        msg = mesh_to_msg(fine, generation=1, fine_parent_tri=parent, fine_bary=np.array(bary))
+        w.write("couture/x/mesh/fine", encode(msg), 2)
+        w.close()
+
+    write(tmp_path / "g.mcap", first, bary_first)
+    write(tmp_path / "a.mcap", last, bary_last)
+    rep = compare(str(tmp_path / "g.mcap"), str(tmp_path / "a.mcap"), rtol=0.0, atol=1e-12)
+    assert rep.ok, rep.text()
+    moved = np.array(bary_last)
+    k = int(np.flatnonzero(first != last)[0])
+    moved[k] = moved[k][[1, 2, 0]]  # another point of the same triangle
+    write(tmp_path / "m.mcap", last, moved)
+    rep = compare(str(tmp_path / "g.mcap"), str(tmp_path / "m.mcap"), rtol=0.0, atol=1e-6)
+    assert not rep.ok
+    assert any(
+        f"fine_parent_tri/fine_bary[{k}]: the point on the coarse mesh" in f for f in rep.topics["mesh/fine"].failures
+    )
+
+
 def _wait_for(cond, timeout: float, what: str) -> None:
     deadline = time.monotonic() + timeout
     while not cond():

@@ -8,6 +8,12 @@ publications), the last one counts. Float arrays and float scalars pass
 when ``|actual - golden| <= atol + rtol * |golden|`` element-wise (NaN equals
 NaN); integers, strings and shapes must match exactly. Fields that measure
 time or ordering (``seq``, ``stamp_ns``, ``wall_time_s``) are not compared.
+A fine mesh's prolongation (``fine_parent_tri``, ``fine_bary``) is compared
+as the points it names on its coarse mesh (the same generation's, on each
+side), not as triangle indices: a fine vertex on an edge or a vertex that
+coarse triangles share may name either of them, and which one is round-off
+(two CPUs gave coarse triangle 10 and 30 for one vertex, the same point to
+4e-15 m).
 
 Each side is a recording file read with its numbered parts (a recorder
 restarted mid-session, couture.recording.parts) or a list of files. Payloads
@@ -38,7 +44,7 @@ from couture.recording.mcapio import read_session
 from couture.recording.parts import PathLike, describe, resolve
 from schemas import topics as topic_table
 from schemas.arrays import FLOAT_DTYPES, Array
-from schemas.messages import DrapeMsg, Message, SchemaError, decode
+from schemas.messages import DrapeMsg, MeshMsg, Message, SchemaError, decode
 
 IGNORED_FIELDS = {"seq", "stamp_ns", "wall_time_s"}
 
@@ -313,6 +319,10 @@ def compare(
             # drape was accepted to be
             cap = max(rule.cap(level), carried.get(level, 0.0)) if rule is not None else math.inf
             ignore = IGNORED_FIELDS | (rule.labels if rule is not None else set())
+            points = _prolongation_points(gm, g), _prolongation_points(am, a)
+            if points[0] is not None and points[1] is not None:
+                ignore = ignore | PROLONGATION_FIELDS
+                _compare_points(points[0], points[1], rtol, atol, tr, k, devs)
             _compare_values(g[k], a[k], "$", rtol, atol, tr, k, devs, skip=skip, cap=cap, ignore=ignore)
         if devs:
             tr.failures.extend(f"{k}: {d}" for d in devs)
@@ -327,6 +337,52 @@ def compare(
     if firsts and not rep.first_deviation:
         rep.first_deviation = min(firsts, key=lambda f: f[0])[1]
     return rep
+
+
+PROLONGATION_FIELDS = {"fine_parent_tri", "fine_bary"}
+"""a fine mesh's map onto its coarse mesh: compared as points (module doc)"""
+
+
+def _prolongation_points(msg: Message, side: dict[str, Message]) -> np.ndarray | None:
+    """The rest-space points [m] a fine mesh's prolongation names on the coarse
+    mesh of its generation in the same recording, (n, 2); None when the message
+    has no prolongation or that coarse mesh is not one message of this side with
+    the triangles it names (the fields are then compared as they are)."""
+    parent, bary = getattr(msg, "fine_parent_tri", None), getattr(msg, "fine_bary", None)
+    if parent is None or bary is None:
+        return None
+    head = f"mesh/coarse gen={msg.generation}"
+    coarse = [m for key, m in side.items() if (key == head or key.startswith(head + " ")) and isinstance(m, MeshMsg)]
+    if len(coarse) != 1 or not isinstance(coarse[0], MeshMsg):
+        return None
+    tris, X = coarse[0].tris.numpy(), coarse[0].X.numpy().astype(np.float64)
+    par, w = parent.numpy(), bary.numpy().astype(np.float64)
+    if w.ndim != 2 or w.shape != (len(par), 3) or (len(par) and (par.min() < 0 or par.max() >= len(tris))):
+        return None
+    return np.einsum("nk,nkd->nd", w, X[tris[par]])
+
+
+def _compare_points(
+    pg: np.ndarray, pa: np.ndarray, rtol: float, atol: float, tr: TopicReport, key: str, devs: list[str]
+) -> None:
+    """The prolongations' points, golden ``pg`` and actual ``pa``, within ``atol + rtol |golden|``."""
+    path = "$.fine_parent_tri/fine_bary"
+    if pg.shape != pa.shape:
+        devs.append(f"{path}: {len(pa)} points != golden {len(pg)}")
+        return
+    if not pg.size:
+        return
+    diff = np.linalg.norm(pa - pg, axis=1)
+    i = int(np.argmax(diff))
+    scale = np.linalg.norm(pg, axis=1)
+    _note(tr, float(diff[i]), float(diff[i] / max(scale[i], 1e-12)), f"{key} {path}[{i}]")
+    bad = ~(diff <= atol + rtol * scale)
+    if bad.any():
+        j = int(np.flatnonzero(bad)[0])
+        devs.append(
+            f"{path}[{j}]: the point on the coarse mesh {pa[j].tolist()} vs golden {pg[j].tolist()} "
+            f"(|diff| {diff[j]:.3e} > {atol:g} + {rtol:g}*|golden|; {int(bad.sum())} vertices off)"
+        )
 
 
 def compare_drape(key: str, g: DrapeMsg, a: DrapeMsg, rule: PhysicsRule, tr: TopicReport) -> list[str]:
