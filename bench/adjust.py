@@ -12,7 +12,7 @@ a supervisor; every solve of an adjustment is a request over the bus
 (``couture.client.SolveFanout``).
 
 Reported per run: mean stretch (eq. 8) and Hausdorff distance (% of the
-mannequin's height) of every iteration, flattening-only (iteration 0)
+mannequin's height) of every iteration, the start pattern (iteration 0)
 against adjusted, the wall time from the edit to the adjusted pattern
 (target + iterations, solves included) and in total, seam length mismatch
 before and after, and the solver that answered each solve. Then the
@@ -25,7 +25,7 @@ drapes, and the patterns; the first solver at the largest size, or every run
 with ``--png-all``) to ``--out``.
 
 Goal (``couture.adjust.settings.GOAL``): Hausdorff <= 1 % of height, mean
-stretch >= 0.98, <= 5 re-simulated patterns (the flattening-only one
+stretch >= 0.98, <= 5 re-simulated patterns (the start pattern's
 counted) and <= 60 s from the edit to the pattern; each run's verdict
 (``couture.adjust.verdict``) names the measured cause of a miss.
 """
@@ -162,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
                     print(f"   {case.verdict.text()}", flush=True)
                     runs.append(s)
                     write_results(a.out, "adjust", {"partial": True, "runs": runs})  # kept if a later run dies
-    print(f"\n{'case':28} {'solver':15} {'verts':>5} {'flat H%':>7} {'H%':>6} {'S':>6} {'solves':>6} {'s':>5} goal")
+    print(f"\n{'case':28} {'solver':15} {'verts':>5} {'start H%':>8} {'H%':>6} {'S':>6} {'solves':>6} {'s':>5} goal")
     done = [s for s in runs if "refused" not in s and "failed" not in s]
     for s in runs:
         if "refused" in s or "failed" in s:
@@ -171,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
             continue
         v = s["verdict"]
         print(
-            f"{s['case']:28} {s['solver_node']:15} {s['vertices']:5d} {s['flattening_only']['hausdorff_pct']:7.2f} "
+            f"{s['case']:28} {s['solver_node']:15} {s['vertices']:5d} {s['start']['hausdorff_pct']:8.2f} "
             f"{v['hausdorff_pct']:6.2f} {v['stretch']:6.3f} {v['solves']:6d} {v['seconds']:5.1f} "
             f"{'yes' if v['met'] else 'NO'}"
         )

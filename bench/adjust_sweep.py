@@ -4,17 +4,20 @@ Every example design with every edit it allows (hem shorter and longer,
 waist looser and tighter), at one coarse size, solved in this process
 (``--solver``, default newton; the settings are the method's, the bench
 ``couture bench adjust`` checks them on the solver nodes with both
-solvers). Per case: the source drape, the target, the fixed point run for
-``--updates`` updates without its stopping rules (each iterate kept), then
-from the iterates after 1 and 2 updates (``--starts``) the Gauss-Newton
-steps with each stretch weight of ``--weights`` (2 steps, lengths 1 and ½,
-every trial recorded). Every trial is a re-simulation, so any policy
-"flattening, k updates, then up to s steps with weight w" can be replayed
-from the record: the policy's result is exactly what the command would
-compute with those settings. The summary scores every policy over all
-cases: how many meet the goal (Hausdorff ≤ 1 % of height, mean stretch ≥
-0.98, ≤ 5 re-simulated patterns counting the flattening-only one), the
-worst Hausdorff distance and stretch, the mean number of solves.
+solvers). Per case: the source drape, the target, then for each fixed-point
+start (``--begins``: the update from the source, the target's flattening)
+the fixed point run for ``--updates`` updates without its stopping rules
+(each iterate kept), and from the iterates after 0, 1 and 2 updates
+(``--starts``) the Gauss-Newton steps with each stretch weight of
+``--weights`` (2 steps, lengths 1 and ½, each linearized at its own drape,
+or with ``--chord`` the second at the first's; every trial recorded).
+Every trial is a re-simulation, so any policy "this start, k updates, then
+up to s steps with weight w" can be replayed from the record: the policy's
+result is exactly what the command would compute with those settings. The
+summary scores every policy over all cases: how many meet the goal
+(Hausdorff ≤ 1 % of height, mean stretch ≥ 0.98, ≤ 5 re-simulated patterns
+counting the start pattern's), the worst Hausdorff distance and stretch,
+the mean number of solves.
 
 Writes ``adjust_sweep.json`` (every case, every trial) to ``--out``.
 """
@@ -51,6 +54,8 @@ def run_one(
     starts: list[int],
     weights: list[float],
     max_seconds: float,
+    begins: tuple[str, ...] = ("flatten", "source"),
+    fresh_jacobian: bool = True,
 ) -> dict:
     from couture.adjust.fixed_point import adjust, local_simulator
     from couture.adjust.gradient import gradient_polish
@@ -79,35 +84,41 @@ def run_one(
         rec["refused"] = str(e)
         return rec
     rec["target_achieved_m"] = target.achieved
-    fp = adjust(mesh, target.x, sim, x_source=src.x, max_iters=updates, stop_stretch=1.1, stagnation=-1.0, log=None)
-    rec["fixed_point"] = [asdict(h) for h in fp.history]
-    rec["polish"] = {}
-    for k in starts:
-        if k >= len(fp.patterns):
-            continue
-        for w in weights:
-            trials: list[dict] = []
-
-            def recording(X, xw, trials=trials):
-                s = sim(X, xw)
-                trials.append({"solver_s": s.wall_time_s, "converged": bool(s.converged)})
-                return s
-
-            try:
-                _, _, steps = gradient_polish(
-                    mesh,
-                    design,
-                    fp.patterns[k],
-                    fp_drape(fp, k),
-                    target.x,
-                    recording,
-                    steps=2,
-                    stretch_weight=w,
-                    log=None,
-                )
-                rec["polish"][f"{k}:{w:g}"] = [asdict(s) for s in steps]
-            except Exception as e:  # noqa: BLE001 - a failed polish is a result of the sweep
-                rec["polish"][f"{k}:{w:g}"] = {"error": f"{type(e).__name__}: {e}"}
+    rec["fixed_point"], rec["polish"] = {}, {}
+    for begin in begins:
+        fp = adjust(
+            mesh,
+            target.x,
+            sim,
+            x_source=src.x,
+            max_iters=updates,
+            stop_stretch=1.1,
+            stagnation=-1.0,
+            log=None,
+            start=begin,
+        )
+        rec["fixed_point"][begin] = [asdict(h) for h in fp.history]
+        rec["polish"][begin] = {}
+        for k in starts:
+            if k >= len(fp.patterns):
+                continue
+            for w in weights:
+                try:
+                    _, _, steps = gradient_polish(
+                        mesh,
+                        design,
+                        fp.patterns[k],
+                        fp_drape(fp, k),
+                        target.x,
+                        sim,
+                        steps=2,
+                        stretch_weight=w,
+                        reuse_jacobian=not fresh_jacobian,
+                        log=None,
+                    )
+                    rec["polish"][begin][f"{k}:{w:g}"] = [asdict(st) for st in steps]
+                except Exception as e:  # noqa: BLE001 - a failed polish is a result of the sweep
+                    rec["polish"][begin][f"{k}:{w:g}"] = {"error": f"{type(e).__name__}: {e}"}
     rec["seconds"] = time.perf_counter() - t0
     return rec
 
@@ -119,6 +130,7 @@ def fp_drape(fp, k: int) -> np.ndarray:
 
 def replay(
     case: dict,
+    begin: str,
     updates: int,
     weight: float | None,
     steps: int,
@@ -133,7 +145,7 @@ def replay(
     best iterate (least Hausdorff), then the gradient steps recorded from that iterate while the
     budget of re-simulated patterns lasts. None where the record does not hold the policy's
     steps (their start was not swept)."""
-    hist = case["fixed_point"]
+    hist = case["fixed_point"][begin]
     run = [hist[0]]
     for k in range(1, min(updates, budget - 1) + 1):
         last = run[-1]
@@ -146,7 +158,7 @@ def replay(
     h, s, n = best["hausdorff_pct"], best["stretch_mean"], len(run)
     left = budget - n
     if steps > 0 and weight is not None and left > 0:
-        pol = case["polish"].get(f"{best['k']}:{weight:g}")
+        pol = case["polish"][begin].get(f"{best['k']}:{weight:g}")
         if not isinstance(pol, list):
             return None
         for g in pol[:steps]:
@@ -169,14 +181,16 @@ def replay(
     return {"hausdorff_pct": h, "stretch": s, "solves": n, "updates": len(run) - 1}
 
 
-def score(cases: list[dict], updates: int, weight: float | None, steps: int, full_only: bool = False) -> dict:
-    """The policy 'flattening, at most ``updates`` updates, then at most ``steps`` gradient steps
+def score(
+    cases: list[dict], begin: str, updates: int, weight: float | None, steps: int, full_only: bool = False
+) -> dict:
+    """The policy 'the start ``begin`` (flattening, or the update from the source drape), at most ``updates`` updates, then at most ``steps`` gradient steps
     with ``weight``, 5 re-simulated patterns in all', replayed over the recorded cases."""
     met, worst_h, worst_s, solves, rows, missing = 0, 0.0, 1.0, [], [], 0
     for c in cases:
         if "refused" in c:
             continue
-        r = replay(c, updates, weight, steps, full_only=full_only)
+        r = replay(c, begin, updates, weight, steps, full_only=full_only)
         if r is None:
             missing += 1
             continue
@@ -186,6 +200,7 @@ def score(cases: list[dict], updates: int, weight: float | None, steps: int, ful
         solves.append(r["solves"])
         rows.append({"case": f"{c['design']}/{c['edit']}", **r, "met": ok})
     return {
+        "start": begin,
         "updates": updates,
         "weight": weight,
         "steps": steps,
@@ -208,8 +223,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--vertices", type=int, default=400)
     ap.add_argument("--solver", default="newton")
     ap.add_argument("--updates", type=int, default=4, help="fixed-point updates run per case")
-    ap.add_argument("--starts", nargs="+", type=int, default=[1, 2])
-    ap.add_argument("--weights", nargs="+", type=float, default=[3.0, 10.0, 30.0])
+    ap.add_argument("--starts", nargs="+", type=int, default=[0, 1, 2], help="gradient steps from these iterates")
+    ap.add_argument("--weights", nargs="+", type=float, default=[10.0, 30.0])
+    ap.add_argument(
+        "--begins", nargs="+", default=["flatten", "source"], choices=["flatten", "source"], help="fixed-point starts"
+    )
+    ap.add_argument("--chord", action="store_true", help="a second gradient step reuses the first's Jacobian")
     ap.add_argument("--max-seconds", type=float, default=60.0)
     ap.add_argument("--rescore", default=None, help="score an earlier adjust_sweep.json instead of running")
     a = ap.parse_args(argv)
@@ -219,21 +238,32 @@ def main(argv: list[str] | None = None) -> int:
         cases = []
         for d, e in itertools.product(a.designs, a.edits):
             print(f"== {d} {e}", flush=True)
-            c = run_one(d, e, a.vertices, a.solver, a.updates, a.starts, a.weights, a.max_seconds)
+            c = run_one(
+                d,
+                e,
+                a.vertices,
+                a.solver,
+                a.updates,
+                a.starts,
+                a.weights,
+                a.max_seconds,
+                tuple(a.begins),
+                not a.chord,
+            )
             if "refused" in c:
                 print(f"   refused: {c['refused']}", flush=True)
-            else:
-                fp = c["fixed_point"]
+            for begin in c.get("fixed_point", {}):
+                fp = c["fixed_point"][begin]
                 print(
-                    "   fixed point H%/S: "
+                    f"   {begin}: fixed point H%/S: "
                     + ", ".join(f"{h['hausdorff_pct']:.2f}/{h['stretch_mean']:.3f}" for h in fp)
                     + f"; {c['seconds']:.0f} s",
                     flush=True,
                 )
-                for key, pol in c["polish"].items():
+                for key, pol in c["polish"][begin].items():
                     if isinstance(pol, list):
                         print(
-                            f"   polish {key}: "
+                            f"   {begin} polish {key}: "
                             + ", ".join(
                                 f"{g['hausdorff_pct']:.2f}/{g['stretch_mean']:.3f}"
                                 f"{'' if g['accepted'] else ' refused'} ({g['solves']})"
@@ -247,15 +277,17 @@ def main(argv: list[str] | None = None) -> int:
                 "adjust_sweep",
                 {"commit": source_commit(), "settings": vars(a) | {"out": str(a.out)}, "cases": cases},
             )
-    policies = [score(cases, u, None, 0) for u in range(1, a.updates + 1)]
-    for u, w, st, fo in itertools.product(range(1, a.updates + 1), a.weights, (1, 2), (False, True)):
-        policies.append(score(cases, u, w, st, fo))
+    begins = sorted({b for c in cases for b in c.get("fixed_point", {})})
+    policies = [score(cases, b, u, None, 0) for b in begins for u in range(0, a.updates + 1)]
+    for b, u, w, st, fo in itertools.product(begins, range(0, a.updates + 1), a.weights, (1, 2), (False, True)):
+        policies.append(score(cases, b, u, w, st, fo))
     print(
-        f"\n{'updates':>7} {'w':>5} {'steps':>5} {'met':>7} {'worst H%':>8} {'worst S':>7} {'solves':>6} unreplayable"
+        f"\n{'start':>7} {'updates':>7} {'w':>5} {'steps':>5} {'lengths':>8} {'met':>7} {'worst H%':>8} {'worst S':>7} "
+        f"{'solves':>6} unreplayable"
     )
     for p in policies:
         print(
-            f"{p['updates']:7d} {p['weight'] or 0:5g} {p['steps']:5d} {'1' if len(p['lengths']) == 1 else '1, 0.5':>8} "
+            f"{p['start']:>7} {p['updates']:7d} {p['weight'] or 0:5g} {p['steps']:5d} {'1' if len(p['lengths']) == 1 else '1, 0.5':>8} "
             f"{p['met']:3d}/{p['cases']:<3d} "
             f"{p['worst_hausdorff_pct']:8.2f} {p['worst_stretch']:7.3f} {p['mean_solves']:6.1f} {p['not_replayable']}"
         )

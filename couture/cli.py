@@ -404,6 +404,13 @@ def _parser() -> argparse.ArgumentParser:
         help=f"at most this many fixed-point updates (default {ADJ.updates})",
     )
     ad.add_argument(
+        "--start",
+        choices=["source", "flatten"],
+        default=None,
+        help="iteration 0's pattern: 'source', one fixed-point update from the source pattern and its drape; "
+        f"'flatten', the target flattened per panel (Bartle's start); default {ADJ.start}",
+    )
+    ad.add_argument(
         "--stop-stretch",
         type=float,
         default=None,
@@ -436,7 +443,7 @@ def _parser() -> argparse.ArgumentParser:
         type=int,
         default=None,
         metavar="N",
-        help=f"re-simulated patterns in all, the flattening-only one included (default {ADJ.max_solves})",
+        help=f"re-simulated patterns in all, the start pattern's included (default {ADJ.max_solves})",
     )
     ad.epilog = (
         f"The defaults were chosen once for every example design and edit (couture bench adjust_sweep).\n"
@@ -1319,6 +1326,7 @@ def adjust(args: argparse.Namespace) -> int:
             vertices=vertices,
             name=Path(args.pattern).stem,
             settings=DEFAULTS.with_(
+                start=args.start,
                 updates=args.iters,
                 stop_stretch=args.stop_stretch,
                 gradient_steps=args.gradient_steps,
@@ -1357,8 +1365,8 @@ def adjust(args: argparse.Namespace) -> int:
     plot_case(case, out / "adjust.png")
     s = case.summary()
     say(
-        f"[adjust] {s['design']}: flattening only: Hausdorff {s['flattening_only']['hausdorff_pct']:.2f} % of height, "
-        f"stretch {s['flattening_only']['stretch']:.4f}; adjusted (iteration {s['adjusted']['iteration']}): "
+        f"[adjust] {s['design']}: start ({s['start']['pattern']}): Hausdorff {s['start']['hausdorff_pct']:.2f} % of "
+        f"height, stretch {s['start']['stretch']:.4f}; adjusted (iteration {s['adjusted']['iteration']}): "
         f"Hausdorff {s['adjusted']['hausdorff_pct']:.2f} %, stretch {s['adjusted']['stretch']:.4f}; "
         + (
             f"after {s['final']['gradient_steps_taken']} gradient steps: Hausdorff {s['final']['hausdorff_pct']:.2f} %, "

@@ -208,6 +208,31 @@ def test_equalized_seams_keep_the_drafted_ease():
     assert max_seam_mismatch(mesh, equalize_seams(mesh, X)) < 1e-9  # without the reference: equal, ease gone
 
 
+def test_the_source_start_gives_back_the_source_pattern_where_the_edit_kept_the_drape(skirt):
+    """Iteration 0 from the source (start_from_source): the source pattern simulated to the
+    source drape is an iterate of the fixed point, so with the source drape as the target
+    the update gives the source pattern back (to round-off, from any triangle shapes the
+    source drape has), while the flattening of the same drape is centimetres off it (the
+    simulation's stretch not undone); for a waist edit, the cloth the edit did not move keeps
+    its source pattern to within the embedding's spread of the band's change (< 1 mm here,
+    against 20 mm for the flattening)."""
+    from couture.adjust.fixed_point import align_panels, start_from_source
+    from couture.adjust.geometry import flatten, frames3
+    from couture.adjust.pipeline import make_target
+
+    _, mesh, x = skirt
+    X0 = start_from_source(mesh, x, frames3(x, mesh.tris))
+    assert np.abs(X0 - mesh.X).max() < 1e-9
+    Xf = align_panels(flatten(x, mesh.tris), mesh.X, mesh.tris, mesh.tri_panel)
+    assert np.abs(Xf - mesh.X).max() > 0.01  # [m]
+    t = make_target("waist", 0.04, x, mesh.tris, mesh)
+    X1 = start_from_source(mesh, x, frames3(t.x, mesh.tris))
+    kept = np.abs(x[:, 1] - t.info["y_loop"]) > 0.2
+    assert np.abs(t.x - x)[kept].max() == 0.0
+    assert np.abs(X1 - mesh.X)[kept].max() < 2e-3  # [m]
+    assert np.abs(X1 - mesh.X)[~kept].max() > np.abs(X1 - mesh.X)[kept].max()  # the band's cloth changed most
+
+
 @pytest.mark.timeout(120)
 def test_adjustment_over_two_solver_processes_matches_one_and_beats_flattening(skirt):
     """Every solve of the adjustment is a `solve` request to solver node
@@ -225,7 +250,9 @@ def test_adjustment_over_two_solver_processes_matches_one_and_beats_flattening(s
         runs = []
         for use in ([names[0]], names):
             fan = SolveFanout(client, mesh, design, use, max_seconds=30)
-            r = adjust(mesh, target, fan, x_source=x, max_iters=2, stop_stretch=1.1, stagnation=-1, log=None)
+            r = adjust(
+                mesh, target, fan, x_source=x, max_iters=2, stop_stretch=1.1, stagnation=-1, log=None, start="flatten"
+            )
             runs.append((r, dict(fan.counts)))
     (one, c1), (two, c2) = runs
     assert c1 == {names[0]: 3} and c2 == {names[0]: 2, names[1]: 1}
@@ -255,7 +282,20 @@ def test_couture_adjust_writes_a_cuttable_pattern(tmp_path):
     from couture.pattern.io import import_dxf
 
     src = "couture/pattern/examples/default_skirt.json"
-    argv = ["adjust", src, "--hem", "-0.15", "--out", str(tmp_path), "--vertices", "200", "--iters", "1"]
+    argv = [
+        "adjust",
+        src,
+        "--hem",
+        "-0.15",
+        "--out",
+        str(tmp_path),
+        "--vertices",
+        "200",
+        "--iters",
+        "1",
+        "--start",
+        "flatten",
+    ]
     rc = main([*argv, "--gradient-steps", "0"])
     s = json.loads((tmp_path / "adjust.json").read_text())
     # exit 0 only when the goal is met, 3 (outputs written, reasons given) otherwise
@@ -263,7 +303,8 @@ def test_couture_adjust_writes_a_cuttable_pattern(tmp_path):
     assert rc == (0 if v["met"] else 3) and (v["met"] or v["reasons"])
     assert v["solves"] == s["solves"] == 2 and v["hausdorff_pct"] == pytest.approx(s["final"]["hausdorff_pct"])
     assert s["solvers"] == ["solver-newton"] and len(s["iterations"]) == 2
-    assert s["adjusted"]["hausdorff_pct"] < s["flattening_only"]["hausdorff_pct"]
+    assert s["start"]["pattern"] == "flatten"
+    assert s["adjusted"]["hausdorff_pct"] < s["start"]["hausdorff_pct"]
     pieces = import_dxf(tmp_path / "pattern.dxf")
     z = np.load(tmp_path / "adjust_mesh.npz")
     mesh = garment_mesh(load_design(src), 200)
@@ -486,3 +527,31 @@ def test_an_unconverged_source_drape_is_adjusted_and_named_in_the_verdict():
     verdict = assess(case)
     assert not verdict.met
     assert any("source drape did not converge (in body: a vertex 2 mm inside)" in r for r in verdict.reasons)
+
+
+def test_the_verdict_tells_a_run_still_closing_in_from_a_stalled_one():
+    """closing_in reads the Hausdorff distance over the run's re-simulations in order (start,
+    updates, every gradient trial; a refused trial came no closer): falling by more than a
+    tenth over the last two says the budget ended it, less says the method had stalled."""
+    from types import SimpleNamespace as NS
+
+    from couture.adjust.gradient import GradientStep
+    from couture.adjust.verdict import closing_in
+
+    def run(hs, steps=()):
+        return NS(result=NS(history=[NS(hausdorff_pct=h) for h in hs]), gradient=list(steps))
+
+    def step(accepted, h, solves):
+        return GradientStep(1, accepted, 1.0 if accepted else 0.0, h, 0.99, 0.01, "n", 1.0, solves)
+
+    falling = closing_in(run([3.0, 1.6, 1.4], [step(True, 1.1, 1), step(True, 1.05, 1)]))
+    assert falling["falling"] and falling["best_before_pct"] == 1.4 and falling["best_last_pct"] == 1.05
+    assert "still closing in when the 5 re-simulations were spent" in falling["text"]
+    stalled = closing_in(run([2.0, 1.63, 1.7], [step(False, 1.63, 2)]))
+    assert not stalled["falling"] and stalled["best_last_pct"] == float("inf")
+    assert stalled["text"] == "stalled: none of the last 2 of 5 re-simulations came closer than 1.63 %"
+    slow = closing_in(run([2.0, 1.7, 1.6, 1.55]))  # 1.55 is within a tenth of 1.7
+    assert not slow["falling"] and slow["text"].startswith(
+        "stalled: the best of the last 2 of 4 re-simulations (1.55 %)"
+    )
+    assert closing_in(run([2.0, 1.5])) is None

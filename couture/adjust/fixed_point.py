@@ -47,7 +47,7 @@ Simulate = Callable[[np.ndarray, np.ndarray], Simulated]
 @dataclass
 class Iteration:
     k: int
-    """0: the flattening-only pattern; k >= 1: after k fixed-point updates"""
+    """0: the start pattern (:data:`STARTS`); k >= 1: after k fixed-point updates"""
     stretch_mean: float
     """Bartle eq. 8, mean over triangles (1 is perfect)"""
     stretch_min: float
@@ -75,10 +75,13 @@ class AdjustResult:
     """adjusted pattern (the iterate whose drape is closest to the target: least Hausdorff distance) [m], shape (n, 2)"""
     x: np.ndarray
     """its simulated drape [m], shape (n, 3)"""
-    X_flat: np.ndarray
-    """flattening-only pattern (iteration 0)"""
-    x_flat: np.ndarray
+    X_start: np.ndarray
+    """the pattern of iteration 0 (``start``: the flattening, or the update from the source drape)"""
+    x_start: np.ndarray
     """its simulated drape"""
+    X_flat: np.ndarray
+    """the target flattened per panel (compression undone, eq. 9): Bartle's start, simulated only
+    when it is iteration 0's pattern"""
     history: list[Iteration]
     best: int
     """index into history of the returned pattern"""
@@ -89,6 +92,8 @@ class AdjustResult:
     """the pattern of every iteration"""
     drapes: list[np.ndarray] = field(default_factory=list)
     """the simulated drape of every iteration"""
+    start: str = "flatten"
+    """what iteration 0's pattern is (:data:`STARTS`)"""
 
 
 def undo_compression(t_target: np.ndarray, t_src3: np.ndarray, T_src: np.ndarray) -> np.ndarray:
@@ -123,6 +128,28 @@ def diverged(s) -> bool:
     return not s.converged and not (np.isfinite(s.residual) and s.residual <= DIVERGED)
 
 
+STARTS = ("source", "flatten")
+"""iteration 0's pattern: ``'source'``, one fixed-point update from the source pattern and its
+drape (every triangle ``T_src (t_src)⁻¹ t_target``); ``'flatten'``, the target flattened (Bartle's)"""
+
+
+def start_from_source(
+    mesh: GarmentMesh, x_source: np.ndarray, t_target: np.ndarray, embed_iters: int = 30
+) -> np.ndarray:
+    """Iteration 0's pattern from the source: the source pattern ``mesh.X`` was simulated to
+    ``x_source`` (the drape the edit started from), so that pair is an iterate of the fixed
+    point already, and one update from it, ``T_src (t_src)⁻¹ t_target`` per triangle, embedded
+    (ARAP from ``X_init``), starts where the source's simulation left off: a triangle the edit
+    kept gets its source pattern triangle back exactly, one it moved the rest shape its
+    source triangle's deformation maps onto the target's. The flattening starts instead from
+    the target's 3D shape, with the stretch of the simulation not undone (eq. 9 undoes only
+    compression), which the updates must then remove."""
+    tris = mesh.tris
+    T0 = fixed_point_update(edges2(mesh.X, tris), frames3(x_source, tris), t_target)
+    X = Embedding(tris, T0, mesh.n_vertices).run(mesh.X, iters=embed_iters)
+    return align_panels(X, mesh.X, tris, mesh.tri_panel)
+
+
 def fixed_point_update(T: np.ndarray, t_k: np.ndarray, t_target: np.ndarray) -> np.ndarray:
     """Bartle eqs. 6-7 per triangle: ``T ← T (t_k)⁻¹ t_target``. T: pattern
     triangles (m, 2, 2) as edge matrices; t_k, t_target: simulated and target
@@ -154,14 +181,17 @@ def adjust(
     equalize: bool = True,
     height: float = MANNEQUIN_HEIGHT,
     log: Callable[[str], None] | None = print,
+    start: str = "source",
 ) -> AdjustResult:
     """Find rest positions whose simulated drape reproduces ``x_target``.
 
     ``mesh`` is the source garment's mesh (its X the source pattern, kept for
     layout and eq. 9 with ``x_source``, the source drape); the target lives on
-    its vertices. Iteration 0 simulates the flattening-only pattern (ARAP
-    flattening of the target per panel, compression undone as in eq. 9); each
-    further iteration applies the fixed point per triangle, embeds (ARAP,
+    its vertices. Iteration 0 simulates the ``start`` pattern: with ``'source'``
+    (and ``x_source`` given) one update from the source pattern and its drape
+    (:func:`start_from_source`), with ``'flatten'`` the flattening-only pattern
+    (ARAP flattening of the target per panel, compression undone as in eq. 9,
+    Bartle's start); each further iteration applies the fixed point per triangle, embeds (ARAP,
     warm-started from the current pattern) and simulates again. Stops after
     ``max_iters`` updates, when the mean stretch reaches ``stop_stretch``, or
     when it gains less than ``stagnation``. With ``equalize``, every updated
@@ -182,6 +212,15 @@ def adjust(
         if not np.allclose(t0_tris, t_g):
             X = Embedding(tris, t0_tris, n).run(X, iters=embed_iters)
     X = align_panels(X, mesh.X, tris, mesh.tri_panel)
+    X_flat = X
+    if start not in STARTS:
+        raise ValueError(f"start {start!r}: choose one of {STARTS}")
+    if start == "source" and x_source is None:
+        start = "flatten"  # no source drape to update from
+    elif start == "source" and x_source is not None:
+        X = start_from_source(mesh, x_source, t_g, embed_iters)
+        if equalize:
+            X = align_panels(equalize_seams(mesh, X, reference=mesh.X), mesh.X, tris, mesh.tri_panel)
     update_s = time.perf_counter() - tu
     raw_mismatch = max_seam_mismatch(mesh, X, mesh.X)
 
@@ -252,14 +291,16 @@ def adjust(
     return AdjustResult(
         X=patterns[best],
         x=drapes[best],
-        X_flat=patterns[0],
-        x_flat=drapes[0],
+        X_start=patterns[0],
+        x_start=drapes[0],
+        X_flat=X_flat,
         history=history,
         best=best,
         stopped=stopped,
         wall_time_s=time.perf_counter() - t0,
         patterns=patterns,
         drapes=drapes,
+        start=start,
     )
 
 

@@ -28,6 +28,7 @@ from .settings import DEFAULTS, AdjustSettings
 from .target import Target, hem_edit, opening_edges, waist_edit, waist_room
 
 EDITS = ("hem", "waist")
+START_LABEL = {"source": "start (source updated)", "flatten": "flattening only"}
 
 
 def garment_mesh(design: Design, vertices: int | None = None) -> GarmentMesh:
@@ -113,7 +114,7 @@ class CaseResult:
 
     @property
     def solves(self) -> int:
-        """Re-simulated patterns: the flattening-only one, every update's, every gradient step trial's."""
+        """Re-simulated patterns: the start pattern's, every update's, every gradient step trial's."""
         return len(self.result.history) + sum(g.solves for g in self.gradient)
 
     @property
@@ -138,9 +139,9 @@ class CaseResult:
         }
 
     def summary(self) -> dict:
-        """JSON-able numbers: per iteration, flattening-only against adjusted, seams, symmetry."""
+        """JSON-able numbers: per iteration, the start against adjusted, seams, symmetry."""
         r, m = self.result, self.mesh
-        flat, best = r.history[0], r.history[r.best]
+        first, best = r.history[0], r.history[r.best]
         return {
             "design": self.design_name,
             "edit": self.edit,
@@ -153,7 +154,7 @@ class CaseResult:
             "solvers": sorted({h.solver for h in r.history}),
             "source_solve": self.source_solve,
             "iterations": [asdict(h) for h in r.history],
-            "flattening_only": {"stretch": flat.stretch_mean, "hausdorff_pct": flat.hausdorff_pct},
+            "start": {"pattern": r.start, "stretch": first.stretch_mean, "hausdorff_pct": first.hausdorff_pct},
             "adjusted": {
                 "iteration": best.k,
                 "stretch": best.stretch_mean,
@@ -171,19 +172,18 @@ class CaseResult:
             "timings_s": self.timings,
             "seams": {
                 "source": seam_lengths(m, m.X),
-                "flattening_only": seam_lengths(m, r.X_flat),
+                "start": seam_lengths(m, r.X_start),
                 "adjusted": seam_lengths(m, self.X_out),
                 "max_mismatch_mm": {
                     "source": 1e3 * max((abs(s["mismatch_m"]) for s in seam_lengths(m, m.X)), default=0.0),
-                    "flattening_only": 1e3
-                    * max((abs(s["mismatch_m"]) for s in seam_lengths(m, r.X_flat)), default=0.0),
+                    "start": 1e3 * max((abs(s["mismatch_m"]) for s in seam_lengths(m, r.X_start)), default=0.0),
                     "adjusted_before_equalizing": 1e3 * r.history[r.best].seam_mismatch_raw_m,
                     "adjusted": 1e3 * max((abs(s["mismatch_m"]) for s in seam_lengths(m, self.X_out)), default=0.0),
                 },
             },
             "symmetry": {
                 "source": mirror_asymmetry(m, m.X, self.x_source),
-                "flattening_only": mirror_asymmetry(m, r.X_flat, self.x_source),
+                "start": mirror_asymmetry(m, r.X_start, self.x_source),
                 "adjusted": mirror_asymmetry(m, self.X_out, self.x_source),
             },
             "pattern_change": {
@@ -243,6 +243,7 @@ def run_case(
         max_iters=max(0, min(settings.updates, settings.max_solves - 1)),
         stop_stretch=settings.stop_stretch,
         equalize=equalize,
+        start=settings.start,
     )
     steps: list = []
     X_final = x_final = None
@@ -262,6 +263,7 @@ def run_case(
             stretch_weight=settings.stretch_weight,
             lengths=settings.lengths,
             max_solves=budget,
+            reuse_jacobian=not settings.fresh_jacobian,
             equalize=equalize,
             log=log,
         )
@@ -298,8 +300,8 @@ def run_case(
 
 def write_outputs(case: CaseResult, out: str | Path, extra: dict | None = None) -> list[Path]:
     """The adjusted pattern as DXF (AAMA), SVG and PDF (true scale), the
-    flattening-only one as ``flattened.svg``, the drapes as OBJ (source,
-    target, adjusted), the pattern's panels as JSON and ``adjust.json`` (the
+    target's flattening (Bartle's start) as ``flattened.svg``, the drapes as OBJ (source,
+    target, adjusted, the start pattern's), the pattern's panels as JSON and ``adjust.json`` (the
     case's summary, with ``extra``'s keys added)."""
     from couture.pattern.io import export_dxf, export_pdf, export_svg
 
@@ -326,7 +328,7 @@ def write_outputs(case: CaseResult, out: str | Path, extra: dict | None = None) 
         ("source", case.x_source),
         ("target", case.target.x),
         ("adjusted", case.x_out),
-        ("flattened", r.x_flat),
+        ("start", r.x_start),
     ):
         p = out / f"drape_{nm}.obj"
         _write_obj(p, x, m.tris)
@@ -336,6 +338,8 @@ def write_outputs(case: CaseResult, out: str | Path, extra: dict | None = None) 
         X_source=m.X,
         X_adjusted=case.X_out,
         X_flattened=r.X_flat,
+        X_start=r.X_start,
+        x_start=r.x_start,
         tris=m.tris,
         tri_panel=m.tri_panel,
         x_source=case.x_source,
@@ -358,7 +362,7 @@ def _write_obj(path: Path, x: np.ndarray, tris: np.ndarray) -> None:
 
 
 def plot_case(case: CaseResult, path: str | Path) -> None:
-    """Target against the re-simulated drapes (flattening-only and adjusted),
+    """Target against the re-simulated drapes (the start pattern's and adjusted),
     front and side, coloured by distance to the target; and the patterns."""
     import matplotlib
 
@@ -373,7 +377,7 @@ def plot_case(case: CaseResult, path: str | Path) -> None:
     fin = case._final_metrics()
     label = "adjusted" + (f" + {fin['gradient_steps_taken']} gradient steps" if fin["gradient_steps_taken"] else "")
     views = [
-        ("flattening only", r.x_flat, (r.history[0].hausdorff_pct, r.history[0].stretch_mean)),
+        (START_LABEL[r.start], r.x_start, (r.history[0].hausdorff_pct, r.history[0].stretch_mean)),
         (label, case.x_out, (fin["hausdorff_pct"], fin["stretch"])),
     ]
     for col, (title, x, (h_pct, s_mean)) in enumerate(views):
@@ -392,7 +396,7 @@ def plot_case(case: CaseResult, path: str | Path) -> None:
     shift = {p.name: s for p, s in layout(drafted_from_mesh(m, m.X))}
     for X, c, lab in (
         (m.X, "tab:green", "source pattern"),
-        (r.X_flat, "tab:red", "flattening only"),
+        (r.X_start, "tab:red", START_LABEL[r.start]),
         (case.X_out, "tab:blue", label),
     ):
         for i, p in enumerate(drafted_from_mesh(m, X).panels):

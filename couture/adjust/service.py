@@ -85,7 +85,7 @@ class AdjustOutcome:
         r = self.case.result
         return (
             f"{self.case.edit} {self.case.amount:+.3f} m: adjusted pattern's drape {self.hausdorff_pct:.2f} % of "
-            f"height from the target (flattening only {r.history[0].hausdorff_pct:.2f} %); design options: {opts}; "
+            f"height from the target (its start {r.history[0].hausdorff_pct:.2f} %); design options: {opts}; "
             f"outline fit {1e3 * p.fit_rms_m:.1f} mm RMS ({1e3 * p.fit_max_m:.1f} mm max); "
             f"the new design's drape: {self.case.edit} {100 * self.achieved:+.1f} cm "
             f"({100 * self.case.amount:+.1f} cm asked); {self.seconds:.1f} s; {self.verdict.text()}"

@@ -87,6 +87,36 @@ def worst_point(x_target: np.ndarray, x: np.ndarray, tris: np.ndarray) -> dict:
     return {"on": "drape", "target_point": qb[i], "drape_point": pb[i], "distance": float(db[i])}
 
 
+def closing_in(case, last: int = 2, gain: float = 0.1) -> dict | None:
+    """Was the Hausdorff distance still falling when the solves ended? Over the run's
+    re-simulations in order (the start, each update, each gradient step's trials), the best of
+    the ``last`` ones against the best before them: falling by more than ``gain`` (a tenth)
+    says the budget, not the method, ended the run; less says the method had stalled there.
+    None when the run had too few solves to tell."""
+    seq = [h.hausdorff_pct for h in case.result.history]
+    for g in case.gradient:
+        seq += [g.hausdorff_pct if g.accepted else float("inf")] * max(1, g.solves)
+    seq = [v if np.isfinite(v) else float("inf") for v in seq]
+    if len(seq) <= last:
+        return None
+    before, recent = min(seq[:-last]), min(seq[-last:])
+    if not np.isfinite(before):
+        return None
+    falling = recent < (1.0 - gain) * before
+    text = (
+        f"still closing in when the {len(seq)} re-simulations were spent (best {before:.2f} % before the last "
+        f"{last}, {recent:.2f} % in them)"
+        if falling
+        else (
+            f"stalled: the best of the last {last} of {len(seq)} re-simulations ({recent:.2f} %) is within a tenth "
+            f"of the best before them ({before:.2f} %)"
+            if np.isfinite(recent)
+            else f"stalled: none of the last {last} of {len(seq)} re-simulations came closer than {before:.2f} %"
+        )
+    )
+    return {"falling": bool(falling), "best_before_pct": before, "best_last_pct": recent, "text": text}
+
+
 def assess(case, goal: Goal = GOAL, body=None) -> Verdict:
     """The verdict on ``case`` (a CaseResult): ``body`` is the scene's body
     as a signed distance callable (points (k, 3) -> (k,) [m]), or None (the
@@ -162,10 +192,15 @@ def assess(case, goal: Goal = GOAL, body=None) -> Verdict:
                     if d_x > d_t
                     else "the drape falls onto the body where the target stands off it"
                 )
+        trend = closing_in(case)
         reasons.append(
             f"Hausdorff {_near(h_pct, goal.hausdorff_pct)} % > {goal.hausdorff_pct:g} %: the worst point ({1e3 * w['distance']:.0f} mm) is "
-            f"{where}" + (f"; {how}" if how else f" (triangles round it: stretch {s_local:.3f})")
+            f"{where}"
+            + (f"; {how}" if how else f" (triangles round it: stretch {s_local:.3f})")
+            + (f"; {trend['text']}" if trend else "")
         )
+        if trend:
+            worst["trend"] = {k: v for k, v in trend.items() if k != "text"}
 
     if s_mean < goal.stretch:
         S = stretch(frames3(xt, tris), frames3(x, tris))
@@ -211,4 +246,4 @@ def body_for(design):
     return lambda points: sdf.phi_grad(np.asarray(points, np.float64))[0]
 
 
-__all__ = ["MANNEQUIN_HEIGHT", "Verdict", "assess", "body_for", "worst_point"]
+__all__ = ["MANNEQUIN_HEIGHT", "Verdict", "assess", "body_for", "closing_in", "worst_point"]
