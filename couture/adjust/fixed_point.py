@@ -139,7 +139,7 @@ def start_from_source(
     """Iteration 0's pattern from the source: the source pattern ``mesh.X`` was simulated to
     ``x_source`` (the drape the edit started from), so that pair is an iterate of the fixed
     point already, and one update from it, ``T_src (t_src)⁻¹ t_target`` per triangle, embedded
-    (ARAP from ``X_init``), starts where the source's simulation left off: a triangle the edit
+    (ARAP from the source pattern), starts where the source's simulation left off: a triangle the edit
     kept gets its source pattern triangle back exactly, one it moved the rest shape its
     source triangle's deformation maps onto the target's. The flattening starts instead from
     the target's 3D shape, with the stretch of the simulation not undone (eq. 9 undoes only
@@ -215,12 +215,13 @@ def adjust(
     X_flat = X
     if start not in STARTS:
         raise ValueError(f"start {start!r}: choose one of {STARTS}")
-    if start == "source" and x_source is None:
-        start = "flatten"  # no source drape to update from
-    elif start == "source" and x_source is not None:
-        X = start_from_source(mesh, x_source, t_g, embed_iters)
-        if equalize:
-            X = align_panels(equalize_seams(mesh, X, reference=mesh.X), mesh.X, tris, mesh.tri_panel)
+    if start == "source":
+        if x_source is None:
+            start = "flatten"  # no source drape to update from
+        else:
+            X = start_from_source(mesh, x_source, t_g, embed_iters)
+            if equalize:
+                X = align_panels(equalize_seams(mesh, X, reference=mesh.X), mesh.X, tris, mesh.tri_panel)
     update_s = time.perf_counter() - tu
     raw_mismatch = max_seam_mismatch(mesh, X, mesh.X)
 
