@@ -195,6 +195,7 @@ def test_ui_adjust_tool_and_couture_adjust_give_the_same_adjusted_pattern(system
     assert rc in (0, 3), err[-3000:]
     s = json.loads((out / "adjust.json").read_text())
     v, fit = s["verdict"], s["design_fit"]
+    assert s["start"]["pattern"] == "source"  # the shipped default: the start from the source pattern
     fitted = load_design(out / "design.json")
     assert rc == (0 if v["met"] else 3)
 
